@@ -1,0 +1,1 @@
+"""The `cbgo` command line, one module per verb."""

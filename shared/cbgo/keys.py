@@ -1,0 +1,140 @@
+"""Every key expression cbgo uses, built from one configurable prefix.
+
+Nothing else in the project spells a key: services name a `Topic` and ask `Keys` for its key
+expression. Each topic also carries its delivery policy, measured to matter (ARCHITECTURE.md):
+hand frames and other high-rate streams are dropped under congestion and sent express, while
+events, summaries, intents, plans and actions block and are never dropped.
+
+Control keys live under ``<prefix>/@alive/<service>`` and ``<prefix>/@ctl/<service>/<verb>``;
+the ``@`` chunk keeps them out of ``<prefix>/**`` data wildcards (recorders, ``cbgo echo``).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from cbgo.errors import ConfigError
+
+DEFAULT_PREFIX = "cbgo"
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One data key of the contract, relative to the prefix.
+
+    Attributes:
+        suffix: the key below the prefix, e.g. ``hands/frame``.
+        reliable: True: congestion control BLOCK (never dropped); False: DROP.
+        express: send at once instead of batching (latency-critical streams).
+        query: the key is answered by a queryable, not published.
+    """
+
+    suffix: str
+    reliable: bool = True
+    express: bool = False
+    query: bool = False
+
+
+HANDS_FRAME = Topic("hands/frame", reliable=False, express=True)
+GAZE = Topic("gaze", reliable=False, express=True)
+USER = Topic("user")
+GESTURES_STATIC = Topic("gestures/static", reliable=False, express=True)
+GESTURES_DYNAMIC = Topic("gestures/dynamic")
+EPISODE_EVENT = Topic("episode/event")
+EPISODE_SUMMARY = Topic("episode/summary")
+SCENE_STATE = Topic("scene/state")
+INTENT = Topic("intent")
+INTENT_INFER = Topic("intent/infer", query=True)
+INTENT_FEEDBACK = Topic("intent/feedback")
+ROBOT_ACT = Topic("robot/act", query=True)
+ROBOT_STATE = Topic("robot/state", reliable=False)
+ROBOT_STOP = Topic("robot/stop", express=True)
+PLAN_STATUS = Topic("plan/status")
+SIM_RESET = Topic("sim/reset", query=True)
+SIM_RENDER = Topic("sim/render", query=True)
+
+TOPICS: dict[str, Topic] = {
+    t.suffix: t
+    for t in (
+        HANDS_FRAME, GAZE, USER, GESTURES_STATIC, GESTURES_DYNAMIC, EPISODE_EVENT,
+        EPISODE_SUMMARY, SCENE_STATE, INTENT, INTENT_INFER, INTENT_FEEDBACK, ROBOT_ACT,
+        ROBOT_STATE, ROBOT_STOP, PLAN_STATUS, SIM_RESET, SIM_RENDER,
+    )
+}
+
+_CHUNK = re.compile(r"^[A-Za-z0-9_.\-]+$")
+_SERVICE = re.compile(r"^[a-z][a-z0-9\-]*$")
+
+
+def check_prefix(prefix: str) -> str:
+    """Returns the prefix if it is a plain key expression, else raises ConfigError.
+
+    A prefix is one or more ``/``-separated chunks of letters, digits, ``_ . -``; no wildcards,
+    no ``@``, no leading or trailing slash (``cbgo``, ``cell-2/cbgo``).
+    """
+    chunks = prefix.split("/")
+    if not prefix or not all(_CHUNK.match(c) for c in chunks):
+        raise ConfigError(
+            f"invalid key prefix {prefix!r}: use chunks of letters, digits, '_', '.', '-' "
+            "separated by '/', e.g. 'cbgo' or 'cell-2/cbgo'"
+        )
+    return prefix
+
+
+def check_service_name(name: str) -> str:
+    """Returns the service name if it is lower-case kebab-case, else raises ConfigError."""
+    if not _SERVICE.match(name):
+        raise ConfigError(f"invalid service name {name!r}: use lower-case kebab-case, e.g. 'episode'")
+    return name
+
+
+class Keys:
+    """Key expressions under one prefix.
+
+    Args:
+        prefix: the configurable root, ``cbgo`` by default.
+    """
+
+    def __init__(self, prefix: str = DEFAULT_PREFIX):
+        self.prefix = check_prefix(prefix)
+
+    def __repr__(self) -> str:
+        return f"Keys({self.prefix!r})"
+
+    def of(self, topic: Topic) -> str:
+        """Returns the key expression of a topic, e.g. ``cbgo/hands/frame``."""
+        return f"{self.prefix}/{topic.suffix}"
+
+    def alive(self, service: str) -> str:
+        """Returns the liveliness token key of a service (``*`` for all)."""
+        return f"{self.prefix}/@alive/{service}"
+
+    def ctl(self, service: str, verb: str) -> str:
+        """Returns a control key of a service, e.g. ``cbgo/@ctl/episode/status``."""
+        return f"{self.prefix}/@ctl/{service}/{verb}"
+
+    @property
+    def data(self) -> str:
+        """The wildcard of all data keys (control keys excluded by their ``@`` chunk)."""
+        return f"{self.prefix}/**"
+
+    def topic_of(self, key: str) -> Topic | None:
+        """Returns the topic a concrete key belongs to, or None if it is not a contract key."""
+        head = self.prefix + "/"
+        return TOPICS.get(key[len(head):]) if key.startswith(head) else None
+
+    def service_of_alive(self, key: str) -> str | None:
+        """Returns the service name of a liveliness key, or None if it is not one."""
+        head = f"{self.prefix}/@alive/"
+        return key[len(head):] if key.startswith(head) else None
+
+    def resolve(self, key: str) -> str:
+        """Returns a user-typed key as a full key expression.
+
+        Keys that already start with the prefix, or with ``@`` (Zenoh's admin space), are taken
+        as they are; anything else is taken as relative to the prefix (``hands/frame``).
+        """
+        if key.startswith(self.prefix + "/") or key == self.prefix or key.startswith("@"):
+            return key
+        return f"{self.prefix}/{key.lstrip('/')}"
