@@ -298,6 +298,19 @@ def resolve(settings_cls: type, argv: list[str] | None, *, prog: str, descriptio
     return resolved
 
 
+def resolve_zenoh(cli: dict, env: typing.Mapping[str, str] | None = None) -> ZenohOptions:
+    """Returns the Zenoh options of a CLI tool: environment < flags (no settings file).
+
+    Args:
+        cli: parsed flags (``vars(args)``; absent flags are simply missing).
+        env: the environment (os.environ by default).
+
+    Raises:
+        ConfigError: an invalid value.
+    """
+    return _layer(ZenohOptions, {}, os.environ if env is None else env, cli, set())
+
+
 def zenoh_config(options: ZenohOptions, name: str):
     """Returns the zenoh.Config of a process named `name`.
 

@@ -214,7 +214,7 @@ class Context:
         The query payload is optional (an empty map when absent).
         """
         key = self.keys.ctl(self.service.name, verb)
-        self._serve(key, None, None, handler, immediate=immediate)
+        self._serve(key, None, None, handler, immediate=immediate, counted=False)
         self.queryables.append(key)
 
     def publishes(self, *topics: Topic) -> None:
@@ -352,9 +352,10 @@ class Context:
             self.publish(topic, message)
 
     def _serve(self, key: str, query_spec: wire.Spec | None, reply_spec: wire.Spec | None,
-               handler: QueryHandler, immediate: bool) -> None:
+               handler: QueryHandler, immediate: bool, counted: bool = True) -> None:
         def on_query(query: IncomingQuery) -> None:
-            self.counters.add("received")
+            if counted:  # control queries (status polls) are not pipeline input
+                self.counters.add("received")
             self._run(lambda: self._answer(key, query, query_spec, reply_spec, handler),
                       droppable=False, immediate=immediate)
 

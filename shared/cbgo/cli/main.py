@@ -1,0 +1,69 @@
+"""The `cbgo` command: one verb per module in `cbgo.cli`.
+
+Examples::
+
+    cbgo up                      # router + every built service, logs merged, Ctrl-C stops all
+    cbgo ls                      # live services: host, pid, uptime, keys
+    cbgo status episode          # one service's status (counters, config, last error)
+    cbgo echo hands/frame        # decoded messages on a key (relative to the prefix)
+    cbgo hz hands/frame          # message rate and jitter
+    cbgo get 'cbgo/@ctl/*/status'
+    cbgo pub user '{"user": "alice"}' --stamp
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+import cbgo
+
+# verb -> module in cbgo.cli; each module has add_arguments(parser) and run(args) -> int.
+VERBS = {
+    "up": ("up", "start the router and services locally, merge logs, restart crashes"),
+    "router": ("router", "run the Zenoh router (Python, admin space on)"),
+    "ls": ("ls", "list live services with host, pid, uptime and keys"),
+    "status": ("status", "show a service's status: counters, config, last error"),
+    "echo": ("echo", "print decoded messages on a key"),
+    "hz": ("hz", "measure message rate, jitter and bandwidth on a key"),
+    "get": ("get", "send a query and print the replies"),
+    "pub": ("pub", "publish a JSON message as msgpack"),
+    "wait-alive": ("wait_alive", "wait until services are alive (for scripts, healthchecks)"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Returns the parser of `cbgo` with every verb."""
+    parser = argparse.ArgumentParser(
+        prog="cbgo", description="cbgo: command a robot arm with hand gestures read in context.",
+        epilog="Run `cbgo VERB --help` for a verb's options and examples.")
+    parser.add_argument("--version", action="version", version=f"cbgo {cbgo.__version__}")
+    verbs = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
+    for verb, (module, summary) in VERBS.items():
+        mod = importlib.import_module(f"cbgo.cli.{module}")
+        sub = verbs.add_parser(verb, help=summary, description=mod.__doc__,
+                               formatter_class=argparse.RawDescriptionHelpFormatter)
+        mod.add_arguments(sub)
+        sub.set_defaults(run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point of the `cbgo` console script."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["router"]:
+        # The router is a service: its flags are the runtime's, parsed by the runtime.
+        from cbgo.router import Router
+        from cbgo.runtime import run
+
+        sys.exit(run(Router, argv[1:]))
+    args = build_parser().parse_args(argv)
+    try:
+        sys.exit(args.run(args))
+    except KeyboardInterrupt:
+        sys.exit(130)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,153 @@
+"""Start the router and the services locally, as child processes, until Ctrl-C.
+
+Logs of all children are merged, each line prefixed with its name. A child that crashes is
+restarted with back-off. `up` says when every liveliness token is alive, when one disappears
+and when it is back. Ctrl-C or SIGTERM stops the services, then the router, cleanly.
+
+Only services that exist in this installation can be started (`cbgo up --list` shows them);
+nothing is faked for the others.
+
+Examples::
+
+    cbgo up                                 # router + every built service
+    cbgo up episode intent                  # router + two services
+    cbgo up --no-router --connect tcp/10.0.0.5:7447 planner   # join a remote router
+    cbgo up --listen tcp/127.0.0.1:7448     # router on another port; services follow it
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+
+from cbgo import registry
+from cbgo.cli.common import fail, session
+from cbgo.config import DEFAULT_ROUTER_LISTEN, add_zenoh_arguments
+from cbgo.supervisor import AliveWatcher, Child, Supervisor
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds up's flags."""
+    parser.add_argument("services", nargs="*",
+                        help="services to start (default: every built service)")
+    parser.add_argument("--list", action="store_true",
+                        help="list the services, whether each is built, and exit")
+    parser.add_argument("--no-router", dest="router", action="store_false",
+                        help="do not start a router; join the one at --connect")
+    parser.add_argument("--router-listen", default=DEFAULT_ROUTER_LISTEN, metavar="ENDPOINT",
+                        help=f"endpoint the router listens on [{DEFAULT_ROUTER_LISTEN}]")
+    parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
+                        help="warn if not every service is alive after S seconds [60]")
+    parser.add_argument("--log-level", default=None, help="log level passed to every child")
+    parser.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
+                        help="colour the log prefixes [default: when stdout is a terminal]")
+    parser.add_argument("--connect-timeout", type=float, default=10.0, metavar="S",
+                        help="how long to wait for the router before giving up [10]")
+    add_zenoh_arguments(parser)
+
+
+def list_services() -> int:
+    """Prints every service and whether it is built."""
+    for info in registry.SERVICES:
+        state = "built" if info.exists() else f"not built yet (issue {info.issue})"
+        print(f"{info.name:<16} {state:<26} {info.summary}")
+    return 0
+
+
+def chosen_services(names: list[str]) -> list[registry.ServiceInfo]:
+    """Returns the services to start, refusing unknown or unbuilt ones with a clear error."""
+    if not names:
+        return registry.available()
+    chosen = []
+    for name in names:
+        try:
+            info = registry.by_name(name)
+        except KeyError as e:
+            fail(str(e.args[0]), 2)
+        if not info.exists():
+            fail(f"service {name!r} is not built yet (issue {info.issue}); "
+                 "`cbgo up --list` shows which are", 2)
+        chosen.append(info)
+    return chosen
+
+
+def _local_endpoint(listen: str) -> str:
+    """Returns the endpoint a local child uses to reach a router listening on `listen`."""
+    proto, _, address = listen.partition("/")
+    host, _, port = address.rpartition(":")
+    if host in ("0.0.0.0", "[::]", ""):
+        host = "127.0.0.1"
+    return f"{proto}/{host}:{port}"
+
+
+def build_children(args: argparse.Namespace, services) -> tuple[list[Child], list[str]]:
+    """Returns the child processes to run and the endpoint(s) they connect to."""
+    common = []
+    if getattr(args, "prefix", None):
+        common += ["--prefix", args.prefix]
+    if args.log_level:
+        common += ["--log-level", args.log_level]
+    children = []
+    if args.router:
+        connect = [_local_endpoint(args.router_listen)]
+        children.append(Child(registry.ROUTER, [sys.executable, "-m", "cbgo.router", "--listen",
+                                                args.router_listen, *common]))
+    else:
+        connect = getattr(args, "connect", None) or []
+        if not connect:
+            fail("--no-router needs --connect ENDPOINT (the router to join)", 2)
+    for info in services:
+        flags = [f for ep in connect for f in ("--connect", ep)]
+        children.append(Child(info.name, [sys.executable, "-m", info.package, *flags, *common]))
+    return children, connect
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runs the supervisor until Ctrl-C/SIGTERM."""
+    if args.list:
+        return list_services()
+    services = chosen_services(args.services)
+    if not services:
+        print("no service is built yet; running the router only (`cbgo up --list`)",
+              flush=True)
+    children, connect = build_children(args, services)
+    sup = Supervisor(children, color=sys.stdout.isatty() if args.color is None else args.color)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    started = time.monotonic()
+    sup.start_all()
+    try:
+        args.connect = connect
+        with session(args, "cbgo-up") as (sess, keys):
+            watcher = AliveWatcher([c.name for c in children], lambda t: sup.emit("up", t, 0),
+                                   since=started)
+            sess.liveliness().declare_subscriber(
+                keys.alive("*"), lambda s: _on_token(watcher, keys, s), history=True)
+            _supervise(sup, watcher, stop, args.ready_timeout)
+    finally:
+        sup.emit("up", "stopping", 0)
+        sup.stop_all()
+        sup.emit("up", "stopped", 0)
+    return 0
+
+
+def _on_token(watcher: AliveWatcher, keys, sample) -> None:
+    import zenoh
+
+    name = keys.service_of_alive(str(sample.key_expr))
+    if name:
+        watcher.on_token(name, sample.kind == zenoh.SampleKind.PUT)
+
+
+def _supervise(sup: Supervisor, watcher: AliveWatcher, stop: threading.Event,
+               ready_timeout: float) -> None:
+    warn_at = time.monotonic() + ready_timeout
+    while not stop.wait(0.1):
+        sup.poll()
+        if warn_at and not watcher.ready.is_set() and time.monotonic() > warn_at:
+            sup.emit("up", f"still waiting for: {', '.join(watcher.missing())}", 0)
+            warn_at = 0.0

@@ -1,0 +1,285 @@
+"""The deployment files: compose.yaml, the Dockerfile and the Zenoh configs in deploy/.
+
+There is no Docker engine in CI, so `docker compose config` is not run: the compose file is
+parsed with PyYAML (which resolves the anchors and merge keys) and checked against the
+contract — the service set of `cbgo.registry`, client mode through the router, healthchecks
+through liveliness tokens — and every command it runs must be a real entry point of the package.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from cbgo.registry import ROUTER, SERVICES
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    tomllib = pytest.importorskip("tomli")
+
+REPO = Path(__file__).resolve().parents[2]
+DEPLOY = REPO / "deploy"
+COMPOSE_FILE = DEPLOY / "compose.yaml"
+SERVICE_NAMES = [s.name for s in SERVICES]
+ROUTER_ENDPOINT = "tcp/router:7447"
+
+
+@pytest.fixture(scope="module")
+def compose() -> dict:
+    return yaml.safe_load(COMPOSE_FILE.read_text())
+
+
+@pytest.fixture(scope="module")
+def services(compose) -> dict:
+    return compose["services"]
+
+
+@pytest.fixture(scope="module")
+def project_scripts() -> dict[str, str]:
+    data = tomllib.loads((REPO / "pyproject.toml").read_text())
+    return data["project"].get("scripts", {})
+
+
+@pytest.fixture(scope="module")
+def installed_scripts() -> dict[str, importlib.metadata.EntryPoint]:
+    eps = importlib.metadata.entry_points(group="console_scripts")
+    return {ep.name: ep for ep in eps if ep.dist is not None and ep.dist.name == "cbgo"}
+
+
+def environment(service: dict) -> dict[str, str]:
+    """Returns a service's environment as a mapping (compose allows a list of KEY=VALUE)."""
+    env = service.get("environment") or {}
+    if isinstance(env, list):
+        env = dict(item.split("=", 1) if "=" in item else (item, None) for item in env)
+    return {str(k): None if v is None else str(v) for k, v in env.items()}
+
+
+def published_ports(service: dict) -> list[tuple[str, str]]:
+    """Returns (host port, container port) pairs, from the short or the long syntax."""
+    pairs = []
+    for port in service.get("ports", []):
+        if isinstance(port, dict):
+            pairs.append((str(port.get("published")), str(port.get("target"))))
+        else:
+            parts = str(port).split("/")[0].split(":")
+            pairs.append((parts[-2] if len(parts) > 1 else "", parts[-1]))
+    return pairs
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=60,
+                          cwd=REPO)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# --- the shape of the compose file -------------------------------------------------------------
+
+
+def test_the_compose_file_has_the_shape_of_the_compose_spec(compose):
+    allowed = {"services", "volumes", "networks", "configs", "secrets", "name", "include"}
+    unknown = {k for k in compose if k not in allowed and not k.startswith("x-")}
+    assert not unknown, f"top-level keys outside the compose spec: {unknown}"
+    assert isinstance(compose.get("services"), dict) and compose["services"]
+    assert isinstance(compose.get("volumes"), dict)
+    for name, service in compose["services"].items():
+        assert "build" in service or "image" in service, f"{name} has neither build nor image"
+        assert isinstance(service.get("command"), list), f"{name}: command must be a list"
+        for dep in service.get("depends_on", {}):
+            assert dep in compose["services"], f"{name} depends on unknown service {dep}"
+        for mount in service.get("volumes", []):
+            source = mount["source"] if isinstance(mount, dict) else mount.split(":")[0]
+            if not source.startswith((".", "/", "~")):
+                assert source in compose["volumes"], f"{name} mounts undeclared volume {source}"
+
+
+def test_the_services_are_the_router_and_the_seven_of_the_registry(services):
+    assert set(services) == {ROUTER, *SERVICE_NAMES}
+
+
+def test_every_container_runs_the_one_image_built_from_the_dockerfile(services):
+    images = {service.get("image") for service in services.values()}
+    assert len(images) == 1, f"one image for all services, got {images}"
+    for name, service in services.items():
+        build = service["build"]
+        context = (COMPOSE_FILE.parent / build["context"]).resolve()
+        assert context == REPO, f"{name}: build context must be the repository root"
+        assert (context / build["dockerfile"]).resolve() == DEPLOY / "Dockerfile"
+    assert (DEPLOY / "Dockerfile").is_file()
+    assert (REPO / ".dockerignore").is_file()
+
+
+def test_every_service_is_a_zenoh_client_of_the_router(services):
+    for name in SERVICE_NAMES:
+        env = environment(services[name])
+        assert env.get("ZENOH_CONNECT") == ROUTER_ENDPOINT, name
+        assert env.get("ZENOH_MODE") == "client", name
+        assert env.get("CBGO_PREFIX") == "${CBGO_PREFIX:-cbgo}", name
+        assert env.get("CBGO_LOG_FORMAT") == "json", name
+
+
+def test_the_router_keeps_its_router_mode_and_shares_the_prefix(services):
+    # The environment wins over the router's defaults: ZENOH_MODE=client or a ZENOH_CONNECT
+    # to itself would break it.
+    env = environment(services[ROUTER])
+    assert services[ROUTER]["command"] == ["cbgo", "router"]
+    assert "ZENOH_MODE" not in env and "ZENOH_CONNECT" not in env
+    assert env.get("CBGO_PREFIX") == "${CBGO_PREFIX:-cbgo}"
+    assert env.get("CBGO_LOG_FORMAT") == "json"
+
+
+def test_the_router_publishes_port_7447_on_the_host(services):
+    assert ("7447", "7447") in published_ports(services[ROUTER])
+    for name in SERVICE_NAMES:
+        assert not services[name].get("ports"), f"{name} is a client and listens on nothing"
+
+
+def test_every_service_restarts_unless_stopped_under_an_init_and_stops_in_time(services):
+    for name, service in services.items():
+        assert service.get("restart") == "unless-stopped", name
+        assert service.get("init") is True, f"{name}: init reaps zombies and forwards SIGTERM"
+        assert service.get("stop_grace_period") == "5s", name
+        assert "healthcheck" in service, name
+
+
+def test_the_services_start_once_the_router_is_healthy(services):
+    for name in SERVICE_NAMES:
+        assert services[name]["depends_on"] == {ROUTER: {"condition": "service_healthy"}}, name
+    assert "depends_on" not in services[ROUTER]
+
+
+@pytest.mark.parametrize("name", [ROUTER, *SERVICE_NAMES])
+def test_every_healthcheck_asks_for_the_liveliness_token_of_its_own_service(services, name):
+    health = services[name]["healthcheck"]
+    test = health["test"]
+    assert test[0] == "CMD", f"{name}: exec form, no shell in the way"
+    assert test[1:4] == ["cbgo", "wait-alive", name], test
+    assert "--timeout" in test
+    timeout = float(test[test.index("--timeout") + 1])
+    assert float(health["timeout"].rstrip("s")) > timeout, "docker must not kill it first"
+    if name == ROUTER:
+        assert test[test.index("--connect") + 1] == "tcp/127.0.0.1:7447"
+
+
+def test_the_models_and_recordings_volumes_are_mounted_under_data(compose, services):
+    assert {"models", "recordings"} <= set(compose["volumes"])
+    for name, service in services.items():
+        mounts = set(service.get("volumes", []))
+        assert {"models:/data/models", "recordings:/data/recordings"} <= mounts, name
+
+
+def test_the_simulator_renders_headless_through_egl(services):
+    assert environment(services["mujoco-sim"]).get("MUJOCO_GL") == "egl"
+
+
+# --- every command is a real entry point --------------------------------------------------------
+
+
+def test_the_cbgo_command_is_the_cli_entry_point_of_the_package(project_scripts,
+                                                                installed_scripts):
+    assert project_scripts.get("cbgo") == "cbgo.cli.main:main"
+    assert "cbgo" in installed_scripts, "reinstall the package: pip install -e ."
+    assert installed_scripts["cbgo"].value == "cbgo.cli.main:main"
+
+
+def test_the_router_module_runs_on_its_own():
+    result = run_cli("-m", "cbgo.router", "--help")
+    assert result.returncode == 0, result.stderr
+    assert "router" in result.stdout
+
+
+@pytest.mark.parametrize("verb", ["router", "wait-alive"])
+def test_the_cli_verbs_that_compose_runs_exist(verb):
+    # `cbgo router` is the router's command, `cbgo wait-alive` every healthcheck's.
+    result = run_cli("-m", "cbgo.cli.main", verb, "--help")
+    assert result.returncode == 0, f"`cbgo {verb} --help` failed:\n{result.stderr[-2000:]}"
+
+
+@pytest.mark.parametrize("info", SERVICES, ids=lambda s: s.name)
+def test_each_service_runs_the_console_script_of_its_package(services, project_scripts,
+                                                             installed_scripts, info):
+    assert services[info.name]["command"] == [info.script]
+    if not info.exists():
+        pytest.skip(f"{info.name} is not implemented yet (issue {info.issue})")
+    target = f"{info.package}.main:main"
+    assert project_scripts.get(info.script) == target, (
+        f"[project.scripts] needs {info.script} = \"{target}\"")
+    assert info.script in installed_scripts, "reinstall the package: pip install -e ."
+    assert installed_scripts[info.script].value == target
+    main = installed_scripts[info.script].load()
+    assert callable(main)
+
+
+# --- the Zenoh configs --------------------------------------------------------------------------
+
+
+def test_the_router_config_opens_a_router_whose_admin_space_answers():
+    import zenoh
+
+    conf = zenoh.Config.from_file(str(DEPLOY / "router.json5"))
+    assert json.loads(conf.get_json("mode")) == "router"
+    assert json.loads(conf.get_json("listen/endpoints")) == ["tcp/0.0.0.0:7447"]
+    assert json.loads(conf.get_json("adminspace/enabled")) is True
+    assert json.loads(conf.get_json("adminspace/permissions/read")) is True
+    assert json.loads(conf.get_json("scouting/multicast/enabled")) is False
+    assert json.loads(conf.get_json("metadata")) == {"name": "router"}
+
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    conf.insert_json5("listen/endpoints", json.dumps([endpoint]))
+    client = zenoh.Config.from_file(str(DEPLOY / "client.json5"))
+    client.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    with zenoh.open(conf) as router, zenoh.open(client) as session:
+        deadline = time.monotonic() + 10
+        while not list(session.info.routers_zid()) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        replies = [r.ok for r in session.get(f"@/{router.zid()}/router", timeout=5) if r.ok]
+        assert replies, "the router's admin space did not answer"
+
+
+def test_the_client_config_connects_to_the_compose_router_and_waits_for_it():
+    import zenoh
+
+    conf = zenoh.Config.from_file(str(DEPLOY / "client.json5"))
+    assert json.loads(conf.get_json("mode")) == "client"
+    assert json.loads(conf.get_json("connect/endpoints")) == [ROUTER_ENDPOINT]
+    assert json.loads(conf.get_json("connect/timeout_ms")) == -1
+    assert json.loads(conf.get_json("scouting/multicast/enabled")) is False
+
+
+# --- the image ----------------------------------------------------------------------------------
+
+
+def test_the_dockerfile_installs_cpu_torch_and_the_package_and_runs_as_a_non_root_user():
+    lines = [line.strip() for line in (DEPLOY / "Dockerfile").read_text().splitlines()
+             if line.strip() and not line.strip().startswith("#")]
+    text = "\n".join(lines)
+    assert lines[0].startswith("FROM python:3.11-slim")
+    assert "--index-url https://download.pytorch.org/whl/cpu" in text
+    assert text.index("download.pytorch.org") < text.index("pip install ."), (
+        "CPU torch must be installed before the package, or pip pulls the CUDA build")
+    users = [line.split()[1] for line in lines if line.startswith("USER ")]
+    assert users and users[-1] not in ("root", "0")
+    assert "PYTHONUNBUFFERED=1" in text
+    assert lines[-1] == 'CMD ["cbgo", "--help"]'
+
+
+def test_the_build_context_leaves_out_the_venv_git_and_recordings():
+    patterns = {line.strip() for line in (REPO / ".dockerignore").read_text().splitlines()
+                if line.strip() and not line.startswith("#")}
+    for needed in (".venv", ".git", "out/"):
+        assert needed in patterns, needed
+    assert patterns & {"__pycache__", "**/__pycache__"}
+    assert patterns & {"*.mcap", "**/*.mcap"}
