@@ -22,13 +22,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from cbgo import wire
+from cbgo import keys, wire
 from cbgo.codec import jsonable
 from cbgo.config import NoSettings, resolve
 from cbgo.errors import RejectedMessage
 from cbgo.examples import example
-from cbgo.keys import EPISODE_EVENT, EPISODE_SUMMARY, GAZE, GESTURES_DYNAMIC, GESTURES_STATIC
-from cbgo.keys import HANDS_FRAME, USER, Keys
 from cbgo.runtime import Context, Service
 
 DOC = Path(__file__).with_name("protocol.md")
@@ -68,15 +66,16 @@ class _Episode(Service):
 def status_example() -> dict:
     """Returns what ``@ctl/episode/status`` answers, from the real runtime, with fixed values."""
     config = resolve(NoSettings, [], prog="cbgo-episode", env={}).as_dict()
-    ctx = Context(_Episode(NoSettings()), Keys(), transport=None, config=config)
-    ctx.inputs = [ctx.keys.of(t) for t in (HANDS_FRAME, GESTURES_STATIC, GESTURES_DYNAMIC,
-                                          GAZE, USER)]
-    ctx.outputs = [ctx.keys.of(t) for t in (EPISODE_EVENT, EPISODE_SUMMARY)]
+    ctx = Context(_Episode(NoSettings()), keys.Keys(), transport=None, config=config)
+    ctx.inputs = [ctx.keys.of(t) for t in (keys.HANDS_FRAME, keys.GESTURES_STATIC,
+                                          keys.GESTURES_DYNAMIC, keys.GAZE, keys.USER)]
+    ctx.outputs = [ctx.keys.of(t) for t in (keys.EPISODE_EVENT, keys.EPISODE_SUMMARY)]
     ctx.queryables = [ctx.keys.ctl("episode", "status")]
     bad_frame = example("hands/frame", ts=TS)
     bad_frame["hands"][0]["confidence"] = 1.2
     try:
-        wire.validate(bad_frame, wire.schema_for("hands/frame"), ctx.keys.of(HANDS_FRAME))
+        wire.validate(bad_frame, wire.schema_for("hands/frame"),
+                      ctx.keys.of(keys.HANDS_FRAME))
     except RejectedMessage as e:
         rejection = str(e)
     else:  # pragma: no cover - the example above must be rejected

@@ -135,8 +135,8 @@ def _coerce(value: Any, tp: Any, name: str) -> Any:
         if origin is list:
             (item,) = typing.get_args(base) or (str,)
             items = value.split(",") if isinstance(value, str) else list(value)
-            return [_coerce(x.strip() if isinstance(x, str) else x, item, name)
-                    for x in items if x != ""]
+            items = [x.strip() if isinstance(x, str) else x for x in items]
+            return [_coerce(x, item, name) for x in items if x != ""]
         if origin is Literal:
             if value not in typing.get_args(base):
                 raise ValueError(f"not one of {typing.get_args(base)}")
@@ -148,13 +148,28 @@ def _coerce(value: Any, tp: Any, name: str) -> Any:
             if lowered not in ("1", "true", "yes", "on", "0", "false", "no", "off"):
                 raise ValueError("not a boolean")
             return lowered in ("1", "true", "yes", "on")
-        if base in (int, float, str):
+        if base is int:
+            return _as_int(value)
+        if base in (float, str):
+            if base is float and isinstance(value, bool):
+                raise ValueError("a boolean is not a number")
             return base(value)
         if base is dict or typing.get_origin(base) is dict:
             return json.loads(value) if isinstance(value, str) else dict(value)
     except (TypeError, ValueError) as e:
         raise ConfigError(f"setting {name}={value!r}: expected {_type_name(tp)} ({e})") from None
     return value
+
+
+def _as_int(value: Any) -> int:
+    """Returns an integer without silently truncating 2048.9 or turning true into 1."""
+    if isinstance(value, bool):
+        raise ValueError("a boolean is not an integer")
+    if isinstance(value, float):
+        if not value.is_integer():
+            raise ValueError("not a whole number")
+        return int(value)
+    return int(value)
 
 
 def _type_name(tp: Any) -> str:
@@ -176,7 +191,7 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, title: s
         tp = hints[f.name]
         base, _ = _base_type(tp)
         flag = "--" + f.name.replace("_", "-")
-        text = f.metadata.get("help", "")
+        text = f.metadata.get("help", "").replace("%", "%%")  # argparse %-formats help
         default = f.default if f.default is not dataclasses.MISSING else (
             f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
         text = f"{text} [default: {default}]" if text else f"[default: {default}]"
@@ -228,7 +243,8 @@ def _layer(cls: type, file_values: dict, env: typing.Mapping[str, str], cli: dic
             values[f.name] = _coerce(env[env_name(f.name)], tp, env_name(f.name))
         if f.name in cli:
             raw = cli[f.name]
-            values[f.name] = raw if isinstance(raw, bool) else _coerce(raw, tp, "--" + f.name)
+            flag = "--" + f.name.replace("_", "-")
+            values[f.name] = raw if isinstance(raw, bool) else _coerce(raw, tp, flag)
     try:
         return cls(**values)
     except TypeError as e:

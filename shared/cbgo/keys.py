@@ -127,7 +127,8 @@ class Keys:
     def service_of_alive(self, key: str) -> str | None:
         """Returns the service name of a liveliness key, or None if it is not one."""
         head = f"{self.prefix}/@alive/"
-        return key[len(head):] if key.startswith(head) else None
+        name = key[len(head):] if key.startswith(head) else ""
+        return name or None
 
     def resolve(self, key: str) -> str:
         """Returns a user-typed key as a full key expression.

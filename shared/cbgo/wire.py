@@ -105,17 +105,21 @@ class Num(Spec):
 
 @dataclass
 class Int(Spec):
-    """An integer (never bool), optionally >= lo."""
+    """An integer (never bool), optionally within [lo, hi]."""
 
     lo: int | None = None
+    hi: int | None = None
 
     @property
     def description(self) -> str:  # type: ignore[override]
+        if self.lo is not None and self.hi is not None:
+            return f"an integer in [{self.lo}, {self.hi}]"
         return "an integer" if self.lo is None else f"an integer >= {self.lo}"
 
     def check(self, value: Any, path: str) -> None:
-        """Rejects non-integers and values below lo."""
-        if type(value) is not int or (self.lo is not None and value < self.lo):
+        """Rejects non-integers and values out of range."""
+        if type(value) is not int or (self.lo is not None and value < self.lo) or (
+                self.hi is not None and value > self.hi):
             self.fail(value, path)
 
 
@@ -173,9 +177,16 @@ class Nullable(Spec):
         return f"null or {self.inner.description}"
 
     def check(self, value: Any, path: str) -> None:
-        """Accepts None, else defers to the inner node."""
-        if value is not None:
+        """Accepts None, else defers to the inner node (saying that null was allowed)."""
+        if value is None:
+            return
+        try:
             self.inner.check(value, path)
+        except RejectedMessage as e:
+            if e.path != path or not e.problem.startswith("expected "):
+                raise
+            raise RejectedMessage("expected null or " + e.problem[len("expected "):],
+                                  path) from None
 
 
 @dataclass
@@ -212,6 +223,8 @@ class ListOf(Spec):
     def description(self) -> str:  # type: ignore[override]
         if self.hi is not None and self.hi == self.lo:
             return f"a list of exactly {self.lo} items"
+        if self.hi is not None:
+            return f"a list of {self.lo} to {self.hi} items"
         return "a list" + (f" of at least {self.lo} items" if self.lo else "")
 
     def check(self, value: Any, path: str) -> None:
@@ -219,7 +232,7 @@ class ListOf(Spec):
         if type(value) is not list:
             self.fail(value, path)
         if len(value) < self.lo or (self.hi is not None and len(value) > self.hi):
-            self.fail(f"{len(value)} items", path)
+            raise RejectedMessage(f"expected {self.description}, got {len(value)} items", path)
         for i, item in enumerate(value):
             self.item.check(item, f"{path}[{i}]")
 
@@ -341,8 +354,9 @@ def _unique_object_names(value: dict) -> None:
 
 
 def _error_when_not_ok(value: dict) -> None:
-    if not value["ok"] and not isinstance(value.get("error"), str):
-        raise RejectedMessage("expected an error string when ok is false", "error")
+    error = value.get("error")
+    if not value["ok"] and not (isinstance(error, str) and error.strip()):
+        raise RejectedMessage("expected a non-empty error reason when ok is false", "error")
 
 
 def _nonzero_quaternion(value: dict) -> None:
@@ -377,15 +391,20 @@ class _Params(Spec):
             _finite_everywhere(v, f"{path}.{k}")
 
 
-def _finite_everywhere(value: Any, path: str) -> None:
+MAX_PARAM_DEPTH = 8  # parameters are flat in practice; deep nesting is an attack or a bug
+
+
+def _finite_everywhere(value: Any, path: str, depth: int = 0) -> None:
     if type(value) is float and not math.isfinite(value):
         raise RejectedMessage(f"expected a finite number, got {_show(value)}", path)
+    if isinstance(value, (list, dict)) and depth >= MAX_PARAM_DEPTH:
+        raise RejectedMessage(f"expected at most {MAX_PARAM_DEPTH} levels of nesting", path)
     if isinstance(value, list):
         for i, v in enumerate(value):
-            _finite_everywhere(v, f"{path}[{i}]")
+            _finite_everywhere(v, f"{path}[{i}]", depth + 1)
     elif isinstance(value, dict):
         for k, v in value.items():
-            _finite_everywhere(v, f"{path}.{k}")
+            _finite_everywhere(v, f"{path}.{k}", depth + 1)
 
 
 PARAMS = _Params()
@@ -492,8 +511,8 @@ SIM_RESET_QUERY = Obj(
 )
 SIM_RESET_REPLY = Obj({"v": V, "ok": Bool(), "error": Nullable(Str(nonempty=False)),
                        "scene": Nullable(SCENE_STATE)}, rules=(_error_when_not_ok,))
-SIM_RENDER_QUERY = Obj({"v": V}, optional={"camera": NAME, "width": Num(16, 4096),
-                                            "height": Num(16, 4096)})
+SIM_RENDER_QUERY = Obj({"v": V}, optional={"camera": NAME, "width": Int(16, 4096),
+                                            "height": Int(16, 4096)})
 SIM_RENDER_REPLY = Obj({"v": V, "ok": Bool(), "error": Nullable(Str(nonempty=False))},
                        optional={"png": Bytes()}, rules=(_error_when_not_ok,))
 
@@ -567,7 +586,8 @@ def decode(payload: bytes, max_bytes: int = DEFAULT_MAX_BYTES) -> dict:
                               f"{max_bytes} bytes")
     try:
         message = msgpack.unpackb(payload, raw=False, strict_map_key=False)
-    except (msgpack.ExtraData, ValueError, msgpack.UnpackException) as e:
+    except (msgpack.ExtraData, ValueError, TypeError, msgpack.UnpackException) as e:
+        # TypeError: a map key that Python cannot hash (a list or a map used as a key)
         raise RejectedMessage(f"not a msgpack payload ({type(e).__name__}: {e})") from None
     if not isinstance(message, dict):
         raise RejectedMessage(f"expected a msgpack map at the top level, got {_show(message)}")
@@ -578,7 +598,7 @@ def decode(payload: bytes, max_bytes: int = DEFAULT_MAX_BYTES) -> dict:
 
 def check_version(message: dict) -> None:
     """Rejects a message whose schema version this build cannot read."""
-    v = message.get("v")
+    v = message.get("v") if isinstance(message, dict) else None
     if type(v) is int and v > SCHEMA_VERSION:
         raise RejectedMessage(f"schema version {v} is newer than this build's "
                               f"{SCHEMA_VERSION}; upgrade cbgo", "v")
@@ -593,8 +613,8 @@ def validate(message: Any, spec: Spec | None, key: str = "") -> dict:
     if spec is None:
         return message
     try:
+        check_version(message)  # first: a newer schema's other changes are not our errors
         spec.check(message, "")
-        check_version(message)
     except RejectedMessage as e:
         raise e.on_key(key) from None
     return message

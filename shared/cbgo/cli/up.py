@@ -24,8 +24,15 @@ import threading
 import time
 
 from cbgo import registry
-from cbgo.cli.common import fail, session
-from cbgo.config import DEFAULT_ROUTER_LISTEN, add_zenoh_arguments
+from cbgo.cli.common import fail
+from cbgo.config import (
+    DEFAULT_ROUTER_LISTEN,
+    ConfigError,
+    add_zenoh_arguments,
+    resolve_zenoh,
+    zenoh_config,
+)
+from cbgo.keys import Keys
 from cbgo.supervisor import AliveWatcher, Child, Supervisor
 
 
@@ -44,8 +51,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log-level", default=None, help="log level passed to every child")
     parser.add_argument("--color", action=argparse.BooleanOptionalAction, default=None,
                         help="colour the log prefixes [default: when stdout is a terminal]")
-    parser.add_argument("--connect-timeout", type=float, default=10.0, metavar="S",
-                        help="how long to wait for the router before giving up [10]")
     add_zenoh_arguments(parser)
 
 
@@ -93,8 +98,11 @@ def build_children(args: argparse.Namespace, services) -> tuple[list[Child], lis
     children = []
     if args.router:
         connect = [_local_endpoint(args.router_listen)]
+        # The router listens; ZENOH_CONNECT from our environment is meant for services, and a
+        # router dialling its own endpoint would only confuse it.
         children.append(Child(registry.ROUTER, [sys.executable, "-m", "cbgo.router", "--listen",
-                                                args.router_listen, *common]))
+                                                args.router_listen, *common],
+                              env={"ZENOH_CONNECT": ""}))
     else:
         connect = getattr(args, "connect", None) or []
         if not connect:
@@ -120,19 +128,32 @@ def run(args: argparse.Namespace) -> int:
         signal.signal(sig, lambda *_: stop.set())
     started = time.monotonic()
     sup.start_all()
+    watcher = AliveWatcher([c.name for c in children], lambda t: sup.emit("up", t, 0),
+                           since=started)
     try:
-        args.connect = connect
-        with session(args, "cbgo-up") as (sess, keys):
-            watcher = AliveWatcher([c.name for c in children], lambda t: sup.emit("up", t, 0),
-                                   since=started)
-            sess.liveliness().declare_subscriber(
-                keys.alive("*"), lambda s: _on_token(watcher, keys, s), history=True)
-            _supervise(sup, watcher, stop, args.ready_timeout)
+        resolved = resolve_zenoh({**vars(args), "connect": connect})
+    except ConfigError as e:
+        fail(f"configuration error: {e}", 2)
+    # The watcher's session waits for the router in its own thread, so that supervision
+    # (restarting a router that died before we reached it) never waits on it.
+    threading.Thread(target=_watch_tokens, args=(resolved, watcher, stop), daemon=True).start()
+    try:
+        _supervise(sup, watcher, stop, args.ready_timeout)
     finally:
         sup.emit("up", "stopping", 0)
         sup.stop_all()
         sup.emit("up", "stopped", 0)
     return 0
+
+
+def _watch_tokens(options, watcher: AliveWatcher, stop: threading.Event) -> None:
+    import zenoh
+
+    keys = Keys(options.prefix)
+    with zenoh.open(zenoh_config(options, "cbgo-up")) as sess:
+        sess.liveliness().declare_subscriber(
+            keys.alive("*"), lambda s: _on_token(watcher, keys, s), history=True)
+        stop.wait()
 
 
 def _on_token(watcher: AliveWatcher, keys, sample) -> None:

@@ -1,0 +1,207 @@
+"""The foundation through real processes: router, runtime, `cbgo` CLI, zenoh-cli codec."""
+
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import msgpack
+import pytest
+
+from cbgo import wire
+from cbgo.examples import example
+
+CLI = [sys.executable, "-m", "cbgo.cli.main"]
+
+
+def cli(stack, *args, timeout=30):
+    """Runs a `cbgo` verb against the stack's router; returns the CompletedProcess."""
+    return subprocess.run([*CLI, *args, "--connect", stack.endpoint], capture_output=True,
+                          text=True, timeout=timeout, env=stack.env())
+
+
+def wait_for_line(proc, needle, timeout=20.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if needle in proc.log():
+            return
+        if proc.popen.poll() is not None:
+            break
+        time.sleep(0.05)
+    raise AssertionError(f"{needle!r} not in the log of {proc.name}:\n{proc.log()}")
+
+
+def put(stack, suffix, payload: bytes):
+    """Publishes raw bytes from the test session after a subscriber is known."""
+    pub = stack.session().declare_publisher(stack.keys.resolve(suffix))
+    deadline = time.monotonic() + 5
+    while not pub.matching_status.matching and time.monotonic() < deadline:
+        time.sleep(0.01)
+    pub.put(payload)
+    return pub
+
+
+@pytest.fixture
+def probe(stack, probe_argv):
+    stack.start_router()
+    stack.spawn("probe", [*probe_argv, "--max-payload-bytes", "4096"])
+    stack.wait_alive(["router", "probe"])
+    return stack.procs["probe"]
+
+
+def test_cbgo_up_starts_the_router_reports_ready_and_stops_cleanly(stack):
+    up = stack.spawn("up", [*CLI, "up", "--router-listen", stack.endpoint])
+    stack.wait_alive(["router"])
+    wait_for_line(up, "ready: router alive")
+    listing = cli(stack, "ls")
+    assert listing.returncode == 0, listing.stderr
+    assert listing.stdout.startswith("router")
+    code, seconds = stack.stop("up", signal.SIGINT)
+    assert code == 0
+    assert seconds < 7.0
+    assert "router  stopped" in up.log()
+
+
+def test_cbgo_up_restarts_a_router_killed_with_sigkill(stack):
+    up = stack.spawn("up", [*CLI, "up", "--router-listen", stack.endpoint])
+    stack.wait_alive(["router"])
+    first_pid = stack.status("router")["pid"]
+    os.kill(first_pid, signal.SIGKILL)
+    wait_for_line(up, "router exited with code -9")
+    wait_for_line(up, "restarting router")
+    stack.wait_alive(["router"], timeout=30)
+    assert stack.status("router")["pid"] != first_pid
+
+
+def test_pub_and_echo_round_trip_a_message_through_the_router(stack):
+    stack.start_router()
+    stack.wait_alive(["router"])
+    echo = stack.spawn("echo", [*CLI, "echo", "user", "--json", "--count", "1", "--timeout",
+                                "20", "--connect", stack.endpoint])
+    wait_for_line(echo, "listening on cbgo/user")
+    sent = cli(stack, "pub", "user", '{"user": "alice"}', "--stamp", "--wait", "10")
+    assert sent.returncode == 0, sent.stderr
+    assert echo.wait(20) == 0
+    line = json.loads(echo.log().strip().splitlines()[-1])
+    assert line["key"] == "cbgo/user"
+    assert line["valid"] is True
+    assert line["message"]["user"] == "alice"
+    assert line["message"]["v"] == 1
+
+
+def test_pub_refuses_a_message_that_breaks_the_contract(stack):
+    stack.start_router()
+    stack.wait_alive(["router"])
+    refused = cli(stack, "pub", "user", '{"user": ""}', "--stamp", "--wait", "0")
+    assert refused.returncode == 2
+    assert "user: expected a non-empty string" in refused.stderr
+
+
+def test_a_service_answers_its_status_query_with_the_contract_fields(stack, probe):
+    status = stack.status("probe")
+    wire.validate(status, wire.SERVICE_STATUS, "status")
+    assert status["name"] == "probe"
+    assert status["pid"] == probe.popen.pid
+    assert status["uptime_s"] > 0
+    assert status["config"]["settings"] == {"slow_s": 0.0}
+    assert status["config"]["zenoh"]["mode"] == "client"
+    assert status["inputs"] == ["cbgo/user"]
+    assert status["counters"] == {"received": 0, "published": 0, "rejected": 0, "errors": 0,
+                                  "dropped": 0}
+    assert status["zid"]
+    shown = cli(stack, "status", "probe")
+    assert shown.returncode == 0 and "counters:" in shown.stdout
+
+
+def test_cbgo_ls_shows_each_service_with_host_pid_and_keys(stack, probe):
+    listing = cli(stack, "ls", "--json")
+    assert listing.returncode == 0, listing.stderr
+    records = {r["name"]: r for r in map(json.loads, listing.stdout.splitlines())}
+    assert set(records) == {"router", "probe"}
+    assert records["probe"]["pid"] == probe.popen.pid
+    assert records["probe"]["subscriber"] == ["cbgo/user"]
+    assert records["probe"]["publisher"] == ["cbgo/episode/event"]
+    assert records["probe"]["queryable"] == ["cbgo/intent/infer"]
+
+
+def test_malformed_messages_are_counted_and_the_service_keeps_working(stack, probe):
+    events = []
+    stack.session().declare_subscriber("cbgo/episode/event",
+                                       lambda s: events.append(wire.decode(s.payload.to_bytes())))
+    bad = [
+        b"\xc1 not msgpack",
+        wire.encode({"v": 1, "ts": math.nan, "user": "x"}),
+        wire.encode({"v": 1, "ts": 1.0, "user": 42}),
+        wire.encode({"v": 1, "ts": 1.0, "user": "x" * 5000}),  # over --max-payload-bytes 4096
+        msgpack.packb([1, 2, 3]),
+    ]
+    for payload in bad:
+        put(stack, "user", payload)
+    put(stack, "user", wire.encode(example("user", user="bob")))
+    deadline = time.monotonic() + 10
+    while not events and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert [e["episode"] for e in events] == ["bob"]
+    counters = stack.status("probe")["counters"]
+    assert counters["rejected"] == len(bad)
+    assert counters["received"] == len(bad) + 1
+    assert counters["published"] == 1
+    assert "rejected input: cbgo/user: ts: expected a finite number" in probe.log()
+    assert "exceeds the limit of 4096 bytes" in probe.log()
+
+
+def test_queries_get_an_answer_or_an_error_reply_never_silence(stack, probe):
+    query = example("intent/infer", "query")
+    (ok, reply), = stack.query("cbgo/intent/infer", query)
+    assert ok and reply["reason"] == "probe saw grab"
+    (ok, reason), = stack.query("cbgo/intent/infer", {**query, "user": "nobody"})
+    assert not ok and reason == "unknown user 'nobody'"
+    (ok, reason), = stack.query("cbgo/intent/infer", {**query, "focus": [0, 0]})
+    assert not ok and "rejected: cbgo/intent/infer: focus: expected null or a list of 3" in reason
+    assert stack.status("probe")["counters"]["rejected"] == 1
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_service_exits_within_two_seconds_of_a_signal(stack, probe, sig):
+    code, seconds = stack.stop("probe", sig)
+    assert code == 0
+    assert seconds < 2.0
+
+
+def test_a_service_busy_in_a_long_handler_still_exits_within_two_seconds(stack, probe_argv):
+    stack.start_router()
+    stack.spawn("probe", [*probe_argv, "--slow-s", "30"])
+    stack.wait_alive(["router", "probe"])
+    put(stack, "user", wire.encode(example("user")))
+    time.sleep(0.3)  # the handler is now sleeping
+    code, seconds = stack.stop("probe", signal.SIGTERM)
+    assert code == 0
+    assert seconds < 2.0
+
+
+def test_the_router_exits_within_two_seconds_of_sigterm(stack):
+    stack.start_router()
+    stack.wait_alive(["router"])
+    code, seconds = stack.stop("router")
+    assert code == 0
+    assert seconds < 2.0
+
+
+@pytest.mark.skipif(shutil.which("zenoh", path=os.path.dirname(sys.executable)) is None,
+                    reason="zenoh-cli is not installed (pip install 'cbgo[tools]')")
+def test_zenoh_cli_decodes_our_messages_with_the_msgpack_codec(stack):
+    stack.start_router()
+    stack.wait_alive(["router"])
+    zenoh_cli = os.path.join(os.path.dirname(sys.executable), "zenoh")
+    sub = stack.spawn("zenoh-cli", [zenoh_cli, "--mode", "client", "--connect", stack.endpoint,
+                                    "subscribe", "-k", "cbgo/**", "--decoder", "msgpack"])
+    message = example("gaze")
+    put(stack, "gaze", wire.encode(message))
+    deadline = time.monotonic() + 15
+    while not sub.log().strip() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert json.loads(sub.log().strip().splitlines()[0]) == message
