@@ -1,6 +1,6 @@
 # Two commands do all set-up on a fresh machine:
 #   make demo   creates .venv, installs cbgo, runs the main job (today: `cbgo up`)
-#   make test   creates .venv, installs cbgo with test extras, runs the test suite
+#   make test   creates .venv, installs cbgo with test extras, runs ruff and the test suite
 # torch is installed first, pinned to the local CPU wheel, so that nothing pulls a CUDA build.
 
 VENV ?= .venv
@@ -23,10 +23,11 @@ demo: $(STAMP)
 	$(VENV)/bin/cbgo up
 
 test: $(STAMP)
+	$(VENV)/bin/ruff check shared services tests docs
 	$(PY) -m pytest -q
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check shared services tests
+	$(VENV)/bin/ruff check shared services tests docs
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

@@ -1,4 +1,4 @@
-"""msgpack <-> JSON text, for people and for the third-party `zenoh` CLI (zenoh-cli).
+r"""msgpack <-> JSON text, for people and for the third-party `zenoh` CLI (zenoh-cli).
 
 zenoh-cli loads codecs through the entry points ``zenoh_cli.codecs.decoders`` and
 ``zenoh_cli.codecs.encoders`` (declared in pyproject.toml under the name ``msgpack``), so::

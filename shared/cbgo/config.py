@@ -182,9 +182,18 @@ def _resolve_hints(cls: type) -> dict[str, Any]:
     return typing.get_type_hints(cls)
 
 
-def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, title: str) -> None:
-    """Adds one ``--field-name`` flag per dataclass field (default SUPPRESS, so unset flags
-    do not override lower layers)."""
+def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, title: str,
+                            shown_defaults: dict | None = None) -> None:
+    """Adds one ``--field-name`` flag per dataclass field.
+
+    Flags default to SUPPRESS, so unset flags do not override lower layers.
+
+    Args:
+        parser: the parser to extend.
+        cls: the dataclass.
+        title: the heading of the flags in --help.
+        shown_defaults: defaults to show instead of the dataclass's (a router's listen).
+    """
     group = parser.add_argument_group(title)
     hints = _resolve_hints(cls)
     for f in dataclasses.fields(cls):
@@ -194,6 +203,7 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, title: s
         text = f.metadata.get("help", "").replace("%", "%%")  # argparse %-formats help
         default = f.default if f.default is not dataclasses.MISSING else (
             f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+        default = (shown_defaults or {}).get(f.name, default)
         text = f"{text} [default: {default}]" if text else f"[default: {default}]"
         kwargs: dict[str, Any] = {"dest": f.name, "default": argparse.SUPPRESS, "help": text}
         if base is bool:
@@ -205,10 +215,10 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, title: s
             group.add_argument(flag, metavar=f.name.upper(), choices=choices, **kwargs)
 
 
-def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
-    """Adds the Zenoh flags (--connect, --listen, --mode, --config, --cfg, --prefix,
-    --scouting)."""
-    add_dataclass_arguments(parser, ZenohOptions, "Zenoh")
+def add_zenoh_arguments(parser: argparse.ArgumentParser, shown_defaults: dict | None = None
+                        ) -> None:
+    """Adds the Zenoh flags: --connect, --listen, --mode, --config, --cfg, --prefix, --scouting."""
+    add_dataclass_arguments(parser, ZenohOptions, "Zenoh", shown_defaults)
 
 
 def read_settings_file(path: str | None) -> dict[str, Any]:
@@ -266,7 +276,8 @@ class Resolved:
                 "settings": dataclasses.asdict(self.settings)}
 
 
-def build_parser(prog: str, description: str, settings_cls: type) -> argparse.ArgumentParser:
+def build_parser(prog: str, description: str, settings_cls: type,
+                 zenoh_defaults: dict | None = None) -> argparse.ArgumentParser:
     """Returns the argument parser of a service: its settings, then Zenoh and runtime flags."""
     parser = argparse.ArgumentParser(
         prog=prog, description=description,
@@ -275,7 +286,7 @@ def build_parser(prog: str, description: str, settings_cls: type) -> argparse.Ar
                "file; flags win over the environment, which wins over the file.")
     if dataclasses.fields(settings_cls):
         add_dataclass_arguments(parser, settings_cls, "service settings")
-    add_zenoh_arguments(parser)
+    add_zenoh_arguments(parser, zenoh_defaults)
     add_dataclass_arguments(parser, RuntimeOptions, "runtime")
     return parser
 
@@ -298,7 +309,7 @@ def resolve(settings_cls: type, argv: list[str] | None, *, prog: str, descriptio
         SystemExit: --help, or unknown flags (argparse).
     """
     env = os.environ if env is None else env
-    cli = vars(build_parser(prog, description, settings_cls).parse_args(argv))
+    cli = vars(build_parser(prog, description, settings_cls, zenoh_defaults).parse_args(argv))
     settings_path = cli.get("settings", env.get("CBGO_SETTINGS"))
     file_values = read_settings_file(settings_path)
     consumed: set[str] = set()

@@ -38,7 +38,7 @@ def open_hand(palm: tuple[float, float, float] = (0.0, 200.0, 30.0), side: str =
         x = px + _KNUCKLE_X[ftype] * (1 if side == "right" else -1)
         z = wrist[2]
         bones = []
-        for btype, length in zip(BONE_TYPES, _BONE_LENGTHS[ftype]):
+        for btype, length in zip(BONE_TYPES, _BONE_LENGTHS[ftype], strict=True):
             bone = {"type": btype, "prev_joint": [x, py, z], "next_joint": [x, py, z - length],
                     "width": 16.0 if ftype != "pinky" else 14.0}
             if ftype == "thumb" and btype == "metacarpal":

@@ -85,7 +85,8 @@ def check_prefix(prefix: str) -> str:
 def check_service_name(name: str) -> str:
     """Returns the service name if it is lower-case kebab-case, else raises ConfigError."""
     if not _SERVICE.match(name):
-        raise ConfigError(f"invalid service name {name!r}: use lower-case kebab-case, e.g. 'episode'")
+        raise ConfigError(f"invalid service name {name!r}: use lower-case kebab-case, "
+                          "e.g. 'episode'")
     return name
 
 

@@ -47,7 +47,8 @@ class ServiceInfo:
 
 # In pipeline order: the order `cbgo up` starts them in.
 SERVICES: tuple[ServiceInfo, ...] = (
-    ServiceInfo("leap-bridge", 3, "hand frames from a Leap Motion, a recording or a simulated user"),
+    ServiceInfo("leap-bridge", 3,
+                "hand frames from a Leap Motion, a recording or a simulated user"),
     ServiceInfo("static-gesture", 4, "per-frame static gesture probabilities (Bayesian MLP)"),
     ServiceInfo("dynamic-gesture", 5, "stroke segmentation and dynamic gestures (ProMP + DTW)"),
     ServiceInfo("episode", 6, "gesture episodes, evidence, the gesture vector g, focus, params"),

@@ -404,12 +404,14 @@ class _ZenohQuery:
         self.payload = query.payload.to_bytes() if query.payload is not None else None
 
     def reply(self, payload: bytes) -> None:
+        """Sends the reply and finalises the query."""
         try:
             self._query.reply(self._key, payload)
         finally:
             self._query.drop()  # finalise now, so the querier is not left waiting for more
 
     def reply_err(self, reason: str) -> None:
+        """Sends an error reply and finalises the query."""
         try:
             self._query.reply_err(reason.encode())
         finally:
@@ -427,14 +429,17 @@ class ZenohTransport:
         self._publishers: dict[str, Any] = {}
 
     def subscribe(self, key: str, callback: Callable[[str, bytes], None]) -> None:
+        """Declares a Zenoh subscriber whose samples go to callback."""
         self._entities.append(self.session.declare_subscriber(
             key, lambda s: callback(str(s.key_expr), s.payload.to_bytes())))
 
     def serve(self, key: str, callback: Callable[[IncomingQuery], None]) -> None:
+        """Declares a Zenoh queryable whose queries go to callback."""
         self._entities.append(self.session.declare_queryable(
             key, lambda q: callback(_ZenohQuery(q, key))))
 
     def publisher(self, key: str, topic: Topic | None) -> Callable[[bytes], None]:
+        """Declares a publisher with the topic's congestion control and express flag."""
         z = self._zenoh
         reliable = topic is None or topic.reliable
         pub = self.session.declare_publisher(
@@ -446,6 +451,7 @@ class ZenohTransport:
         return pub.put
 
     def get(self, key: str, payload: bytes, timeout_s: float) -> list[tuple[bool, bytes]]:
+        """Sends a query and collects every reply until the timeout."""
         out = []
         for reply in self.session.get(key, payload=payload, timeout=timeout_s):
             if reply.ok is not None:
@@ -455,10 +461,12 @@ class ZenohTransport:
         return out
 
     def matching(self, key: str) -> bool:
+        """Returns whether a subscriber matches the publisher of key."""
         pub = self._publishers.get(key)
         return bool(pub is not None and pub.matching_status.matching)
 
     def alive(self, key: str, timeout_s: float) -> list[str]:
+        """Returns the liveliness tokens matching key."""
         return [str(r.ok.key_expr) for r in self.session.liveliness().get(key, timeout=timeout_s)
                 if r.ok is not None]
 

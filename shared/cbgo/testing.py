@@ -138,8 +138,10 @@ class FakeBus:
             False, payload.decode())
 
     def answer(self, topic: Topic, responder: Callable[[dict], dict]) -> None:
-        """Scripts the reply to queries the service sends on topic (raise QueryError to
-        answer with an error)."""
+        """Scripts the reply to queries the service sends on topic.
+
+        The responder may raise QueryError to answer with an error.
+        """
         self.transport.responders[self.keys.of(topic)] = responder
 
     def set_alive(self, *services: str) -> None:

@@ -86,6 +86,7 @@ class Num(Spec):
 
     @property
     def description(self) -> str:  # type: ignore[override]
+        """What this node expects, for error messages and docs."""
         if self.lo is not None and self.hi is not None:
             return f"a finite number in [{self.lo}, {self.hi}]"
         if self.lo is not None:
@@ -112,6 +113,7 @@ class Int(Spec):
 
     @property
     def description(self) -> str:  # type: ignore[override]
+        """What this node expects, for error messages and docs."""
         if self.lo is not None and self.hi is not None:
             return f"an integer in [{self.lo}, {self.hi}]"
         return "an integer" if self.lo is None else f"an integer >= {self.lo}"
@@ -132,6 +134,7 @@ class Str(Spec):
 
     @property
     def description(self) -> str:  # type: ignore[override]
+        """What this node expects, for error messages and docs."""
         if self.choices:
             return "one of " + ", ".join(repr(c) for c in self.choices)
         return "a non-empty string" if self.nonempty else "a string"
@@ -174,6 +177,7 @@ class Nullable(Spec):
 
     @property
     def description(self) -> str:  # type: ignore[override]
+        """What this node expects, for error messages and docs."""
         return f"null or {self.inner.description}"
 
     def check(self, value: Any, path: str) -> None:
@@ -197,6 +201,7 @@ class Vec(Spec):
 
     @property
     def description(self) -> str:  # type: ignore[override]
+        """What this node expects, for error messages and docs."""
         return f"a list of {self.n} finite numbers"
 
     def check(self, value: Any, path: str) -> None:
@@ -221,6 +226,7 @@ class ListOf(Spec):
 
     @property
     def description(self) -> str:  # type: ignore[override]
+        """What this node expects, for error messages and docs."""
         if self.hi is not None and self.hi == self.lo:
             return f"a list of exactly {self.lo} items"
         if self.hi is not None:
@@ -324,7 +330,8 @@ def _ordered_types(key: str, types: tuple[str, ...]) -> Callable[[dict], None]:
     def rule(value: dict) -> None:
         got = tuple(item["type"] for item in value[key])
         if got != types:
-            raise RejectedMessage(f"expected types in the order {list(types)}, got {list(got)}", key)
+            raise RejectedMessage(
+                f"expected types in the order {list(types)}, got {list(got)}", key)
     return rule
 
 
@@ -502,7 +509,8 @@ ROBOT_STATE = Obj({
 })
 
 RESET_OBJECT = SCENE_OBJECT
-RESET_ROBOT = Obj({}, optional={"tcp": POS, "gripper_open": Bool(), "holding": Nullable(NAME)})
+RESET_ROBOT = Obj({}, optional={"tcp": POS, "gripper_open": Bool(),
+                                "holding": Nullable(NAME)})
 SIM_RESET_QUERY = Obj(
     {"v": V},
     optional={"seed": Int(lo=0), "scene": Obj({"objects": ListOf(RESET_OBJECT, 0, 256)},
@@ -556,7 +564,7 @@ MAX_BYTES_OVERRIDES = {"sim/render": MAX_BYTES_RENDER}
 
 
 def _to_builtin(obj: Any) -> Any:
-    """msgpack `default` hook: numpy scalars and arrays become plain Python values."""
+    """Msgpack `default` hook: numpy scalars and arrays become plain Python values."""
     if isinstance(obj, np.generic):
         return obj.item()
     if isinstance(obj, np.ndarray):

@@ -39,7 +39,7 @@ class Probe(Service):
     def on_infer(self, query):
         if query["user"] == "nobody":
             raise QueryError("unknown user 'nobody'")
-        best = max(zip(query["gestures"]["probs"], query["gestures"]["names"]))[1]
+        best = max(zip(query["gestures"]["probs"], query["gestures"]["names"], strict=True))[1]
         return {"v": 1, "ts": time.time(), "episode": None, "action": None, "object": None,
                 "params": {}, "p_action": {}, "p_object": {}, "confidence": 0.0,
                 "status": "low_confidence", "reason": f"probe saw {best}", "model": "probe"}

@@ -49,8 +49,10 @@ class RateMeter:
         self.total += 1
 
     def stats(self) -> dict | None:
-        """Returns rate (Hz), interval mean/min/max/std (ms), mean size (B) and bandwidth
-        (B/s) over the window, or None with fewer than two messages."""
+        """Returns the statistics over the window, or None with fewer than two messages.
+
+        Rate in Hz, interval mean/min/max/std in ms, mean size in B, bandwidth in B/s.
+        """
         if len(self.stamps) < 2:
             return None
         dt = np.diff(np.asarray(self.stamps))

@@ -7,6 +7,7 @@ import json
 from dataclasses import dataclass, field
 
 import pytest
+
 from cbgo import config
 from cbgo.config import NoSettings, RuntimeOptions, ZenohOptions, resolve, zenoh_config
 from cbgo.errors import ConfigError

@@ -6,6 +6,7 @@ import dataclasses
 
 import pytest
 import zenoh
+
 from cbgo import keys
 from cbgo.errors import ConfigError
 from cbgo.keys import Keys

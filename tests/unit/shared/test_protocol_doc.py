@@ -11,6 +11,7 @@ import re
 from pathlib import Path
 
 import pytest
+
 from cbgo import wire
 from cbgo.examples import EXAMPLE_KEYS
 

@@ -1,0 +1,55 @@
+"""The supervisor behind `cbgo up`, on real (tiny) child processes."""
+
+import sys
+import time
+
+from cbgo.supervisor import AliveWatcher, Child, Supervisor
+
+
+def supervise_for(sup, seconds):
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        sup.poll()
+        time.sleep(0.02)
+
+
+def test_a_crashing_child_is_restarted_with_a_doubling_back_off():
+    said = []
+    crasher = Child("crasher", [sys.executable, "-c", "import sys; sys.exit(3)"])
+    sup = Supervisor([crasher], say=said.append)
+    sup.start_all()
+    supervise_for(sup, 2.5)
+    sup.stop_all()
+    exits = [s for s in said if "exited with code 3" in s]
+    assert len(exits) >= 2
+    assert "restarting in 0.5 s" in exits[0]
+    assert "restarting in 1.0 s" in exits[1]
+    assert crasher.restarts >= 2
+
+
+def test_stop_all_terminates_children_and_stops_restarting(capsys):
+    sleeper = Child("sleeper", [sys.executable, "-c", "import time; print('up', flush=True); "
+                                                      "time.sleep(60)"])
+    sup = Supervisor([sleeper], say=lambda s: None)
+    sup.start_all()
+    time.sleep(0.5)
+    t0 = time.monotonic()
+    sup.stop_all()
+    assert time.monotonic() - t0 < 3.0
+    assert sleeper.proc.returncode is not None
+    supervise_for(sup, 0.3)
+    assert sleeper.restarts == 0
+    assert "sleeper | up" in capsys.readouterr().out
+
+
+def test_the_alive_watcher_reports_ready_once_and_then_losses_and_returns():
+    said = []
+    watcher = AliveWatcher(["router", "episode"], said.append)
+    watcher.on_token("router", True)
+    assert not watcher.ready.is_set() and watcher.missing() == ["episode"]
+    watcher.on_token("episode", True)
+    assert watcher.ready.is_set()
+    watcher.on_token("episode", False)
+    watcher.on_token("episode", True)
+    assert said[0].startswith("ready: episode, router alive after")
+    assert said[1:] == ["episode lost its liveliness token", "episode is alive again"]
