@@ -30,6 +30,7 @@ VERBS = {
     "get": ("get", "send a query and print the replies"),
     "pub": ("pub", "publish a JSON message as msgpack"),
     "wait-alive": ("wait_alive", "wait until services are alive (for scripts, healthchecks)"),
+    "bench": ("bench", "run a benchmark and print its figures"),
 }
 
 

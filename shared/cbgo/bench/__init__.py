@@ -1,0 +1,8 @@
+"""Benchmarks behind `cbgo bench <name>`: each module has `add_arguments` and `run`.
+
+Benchmarks print figures; they do not assert speed (tests assert behaviour).
+"""
+
+BENCHES = {
+    "wire": "encode/decode/validate cost per message and latency through a real router",
+}
