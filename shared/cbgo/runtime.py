@@ -165,6 +165,7 @@ class Context:
         self.zid = ""  # the Zenoh session id, set by run()
         self.rejects = RateLimited(self.log)
         self.stopping = threading.Event()
+        self.exit_code = EXIT_OK
         self.started = time.time()
         self.inputs: list[str] = []
         self.outputs: list[str] = []
@@ -291,6 +292,18 @@ class Context:
                 return False
             time.sleep(0.05)
         return True
+
+    def request_exit(self, code: int, reason: str) -> None:
+        """Stops the service from any thread; the process exits with `code`.
+
+        For faults a restart may cure (a lost device: EXIT_DEVICE), so that the supervisor
+        (`cbgo up`, compose) restarts the process.
+        """
+        self.counters.error("exit", reason)
+        self.log.error("exiting with code %d: %s", code, reason)
+        self.exit_code = code
+        self.stopping.set()
+        self._enqueue(lambda: None, False)  # wake the event loop
 
     def status(self) -> dict:
         """Returns the reply of ``@ctl/<service>/status``."""
@@ -489,6 +502,8 @@ class _EventLoop:
     def run(self, ctx: Context) -> None:
         while not ctx.stopping.is_set():
             wait = ctx.run_due_timers()
+            if ctx.stopping.is_set():
+                break
             try:
                 work = self.queue.get(timeout=wait)
             except queue.Empty:
@@ -572,7 +587,7 @@ def _serve_forever(service_cls: type[Service], resolved: Resolved, log) -> int:
             ctx.stopping.set()
             ctx._call("shutdown", service.shutdown)
     log.info("stopped")
-    return EXIT_OK
+    return ctx.exit_code
 
 
 def main_for(service_cls: type[Service]) -> Callable[[list[str] | None], None]:

@@ -1,0 +1,1 @@
+"""leap-bridge: hand frames from a Leap Motion sensor, a recording or a simulated user."""

@@ -1,0 +1,187 @@
+"""Scenario files: what a simulated user does, as data (YAML or JSON).
+
+A scenario is a list of episodes performed by named users::
+
+    name: pick-and-pour
+    seed: 7                      # everything random (styles, noise) derives from it
+    users:
+      user1: {hand_scale: 1.0, side: right, speed: 1.0}
+      user2: {hand_scale: 0.9, side: left, speed: 1.3, tremor_mm: 1.5}
+    episodes:
+      - user: user1
+        gaze: cup1               # an object name (resolved in cbgo/scene/state) ...
+        gestures: [point, grab]
+      - gaze: [0.5, -0.2, 0.1]   # ... or a point in the robot base frame (m), or null
+        gestures:
+          - swipe_down
+          - {gesture: rotate, angle_deg: 90}
+          - {gesture: grab, hold_s: 1.5}
+        pause_s: 2.0             # no hand in view before the episode
+        dropout_frames: 1        # drop the hand for N frames mid-episode (tracking loss)
+
+Rules: gesture names are the wire vocabulary (8 static, 5 dynamic); unknown keys are errors
+(a typo must not silently change a scenario); every error names the episode and the field.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from cbgo.errors import ConfigError
+from cbgo.wire import DYNAMIC_GESTURES, STATIC_GESTURES
+
+BUNDLED = Path(__file__).parent / "scenarios"
+
+
+@dataclass
+class UserStyle:
+    """How one simulated person moves; every field has a typical default."""
+
+    hand_scale: float = 1.0     # hand size relative to an average adult hand
+    side: str = "right"         # which hand gestures
+    speed: float = 1.0          # >1 moves faster
+    amplitude: float = 1.0      # size of strokes relative to 180 mm
+    curvature: float = 0.08     # sideways bow of strokes, fraction of their length
+    tremor_mm: float = 0.8      # physiological tremor amplitude (RMS, mm)
+    pose_variation: float = 1.0  # spread of static poses relative to the calibrated spread
+    hold_s: float = 0.9         # how long a static gesture is held
+    gaze_noise_m: float = 0.01  # eye-tracking noise (m, per axis)
+
+    def __post_init__(self):
+        if self.side not in ("left", "right"):
+            raise ConfigError(f"side {self.side!r} must be 'left' or 'right'")
+        for name in ("hand_scale", "speed", "amplitude", "hold_s"):
+            if not 0.05 < float(getattr(self, name)) < 20:
+                raise ConfigError(f"{name}={getattr(self, name)} is out of range")
+        for name in ("curvature", "tremor_mm", "pose_variation", "gaze_noise_m"):
+            if float(getattr(self, name)) < 0:
+                raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
+
+
+@dataclass
+class GestureStep:
+    """One gesture inside an episode, with its optional parameters."""
+
+    gesture: str
+    hold_s: float | None = None     # static: override the style's hold time
+    angle_deg: float = 90.0         # rotate: palm roll angle
+    aperture_mm: float | None = None  # pinch: thumb-index distance to show
+
+    @property
+    def dynamic(self) -> bool:
+        """True for a stroke (swipe or rotate), False for a held pose."""
+        return self.gesture in DYNAMIC_GESTURES
+
+
+@dataclass
+class Episode:
+    """One episode: the hand enters, performs its gestures, leaves."""
+
+    gestures: list[GestureStep]
+    user: str | None = None
+    gaze: str | list[float] | None = None
+    pause_s: float = 1.5
+    preparation: bool = True
+    dropout_frames: int = 0
+
+
+@dataclass
+class Scenario:
+    """A whole scripted session."""
+
+    episodes: list[Episode]
+    users: dict[str, UserStyle] = field(default_factory=lambda: {"user1": UserStyle()})
+    name: str = "scenario"
+    seed: int = 0
+
+    def user_of(self, episode: Episode) -> str:
+        """Returns the user name performing an episode (the first user by default)."""
+        return episode.user or next(iter(self.users))
+
+
+def _build(cls, data: Any, where: str):
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where}: expected a mapping, got {type(data).__name__}")
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ConfigError(f"{where}: unknown field(s) {unknown}; known: {sorted(known)}")
+    try:
+        return cls(**data)
+    except TypeError as e:
+        raise ConfigError(f"{where}: {e}") from None
+    except ConfigError as e:
+        raise ConfigError(f"{where}: {e}") from None
+
+
+def _step(item: Any, where: str) -> GestureStep:
+    step = _build(GestureStep, {"gesture": item} if isinstance(item, str) else item, where)
+    if step.gesture not in STATIC_GESTURES + DYNAMIC_GESTURES:
+        raise ConfigError(f"{where}: unknown gesture {step.gesture!r}; known: "
+                          f"{', '.join(STATIC_GESTURES + DYNAMIC_GESTURES)}")
+    return step
+
+
+def _episode(data: Any, index: int, users: dict[str, UserStyle]) -> Episode:
+    where = f"episodes[{index}]"
+    if not isinstance(data, dict) or not data.get("gestures"):
+        raise ConfigError(f"{where}: needs a non-empty 'gestures' list")
+    steps = [_step(g, f"{where}.gestures[{i}]") for i, g in enumerate(data["gestures"])]
+    episode = _build(Episode, {**data, "gestures": steps}, where)
+    if episode.user is not None and episode.user not in users:
+        raise ConfigError(f"{where}: user {episode.user!r} is not in users {sorted(users)}")
+    gaze = episode.gaze
+    if gaze is not None and not isinstance(gaze, str) and not (
+            isinstance(gaze, list) and len(gaze) == 3
+            and all(isinstance(v, (int, float)) for v in gaze)):
+        raise ConfigError(f"{where}.gaze: expected an object name, [x, y, z] (m) or null")
+    return episode
+
+
+def parse_scenario(data: Any, source: str = "scenario") -> Scenario:
+    """Returns the Scenario described by decoded YAML/JSON data.
+
+    Raises:
+        ConfigError: naming the episode and field at fault.
+    """
+    if not isinstance(data, dict) or not isinstance(data.get("episodes"), list):
+        raise ConfigError(f"{source}: expected a mapping with an 'episodes' list")
+    users_data = data.get("users") or {"user1": {}}
+    if not isinstance(users_data, dict):
+        raise ConfigError(f"{source}: 'users' must map user names to styles")
+    users = {str(name): _build(UserStyle, style or {}, f"users.{name}")
+             for name, style in users_data.items()}
+    episodes = [_episode(e, i, users) for i, e in enumerate(data["episodes"])]
+    if not episodes:
+        raise ConfigError(f"{source}: no episodes")
+    extra = sorted(set(data) - {"episodes", "users", "name", "seed"})
+    if extra:
+        raise ConfigError(f"{source}: unknown field(s) {extra}")
+    return Scenario(episodes=episodes, users=users, name=str(data.get("name", source)),
+                    seed=int(data.get("seed", 0)))
+
+
+def load_scenario(path: str) -> Scenario:
+    """Reads a scenario file; a bare name (``demo``) means a bundled scenario.
+
+    Raises:
+        ConfigError: missing or invalid file.
+    """
+    file = Path(path)
+    if not file.exists() and (BUNDLED / f"{path}.yaml").exists():
+        file = BUNDLED / f"{path}.yaml"
+    try:
+        text = file.read_text()
+    except OSError as e:
+        bundled = ", ".join(sorted(p.stem for p in BUNDLED.glob("*.yaml")))
+        raise ConfigError(f"cannot read scenario {path!r} ({e}); bundled: {bundled}") from None
+    try:
+        data = json.loads(text) if file.suffix == ".json" else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError) as e:
+        raise ConfigError(f"scenario {path!r} is not valid YAML/JSON: {e}") from None
+    return parse_scenario(data, str(path))

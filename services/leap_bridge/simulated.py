@@ -1,0 +1,170 @@
+"""The simulated user: a scenario performed with a kinematic hand, frame by frame.
+
+Each episode follows how people use a Leap Motion for gestures (the paper's episode and stroke
+notions): the hand is out of view, enters from the user's side, settles in the centre of the
+field (preparation), performs its gestures — static poses are formed, held and released; strokes
+(swipes, rotate) start from rest in the centre — returns to the centre after each stroke
+(retraction, slower and not starting in the centre), and leaves. Everything random — the user's
+hand size, pose spread, stroke bow, tremor, gaze noise — derives from the scenario's seed and the
+user's name, so a scenario is reproducible frame by frame.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from cbgo.hands.model import HandShape, blend, build_hand, neutral_pose
+from cbgo.hands.poses import gesture_pose
+from cbgo.services.leap_bridge.motion import (
+    CENTRE_MM,
+    ENTRY_MM,
+    EXIT_MM,
+    Timeline,
+    TimelineBuilder,
+)
+from cbgo.services.leap_bridge.scenario import Episode, GestureStep, Scenario, UserStyle
+
+STROKE_MM = 160.0  # swipe length of an average user
+SWIPE_DIRECTIONS = {
+    "swipe_up": np.array([0.0, 1.0, 0.0]), "swipe_down": np.array([0.0, -0.85, 0.0]),
+    "swipe_left": np.array([-1.0, 0.0, 0.0]), "swipe_right": np.array([1.0, 0.0, 0.0]),
+}
+
+
+@dataclass
+class SourceFrame:
+    """One frame from any source, before it is stamped and published.
+
+    Attributes:
+        t: seconds on the source's own timeline (None: publish at once).
+        hands: contract hand dicts (empty: no hand visible).
+        user: the operator, when the source knows it.
+        gaze: simulated gaze target: an object name or a base-frame point (m), or None.
+        label: simulated ground truth: the gesture being performed, if any (not published).
+    """
+
+    t: float | None
+    hands: list[dict]
+    user: str | None = None
+    gaze: str | list[float] | None = None
+    label: str | None = None
+
+
+def _seed(scenario_seed: int, *parts: str) -> int:
+    return (scenario_seed * 1_000_003 + zlib.crc32("/".join(parts).encode())) % (2**32)
+
+
+class SimulatedUser:
+    """Turns a scenario into timed frames.
+
+    Args:
+        scenario: what to perform.
+        rate_hz: frame rate of the simulated sensor.
+    """
+
+    def __init__(self, scenario: Scenario, rate_hz: float):
+        self.scenario = scenario
+        self.rate_hz = rate_hz
+        self.shapes = {name: self._shape(name, style) for name, style in scenario.users.items()}
+        self._next_hand_id = 1
+
+    def _shape(self, name: str, style: UserStyle) -> HandShape:
+        rng = np.random.default_rng(_seed(self.scenario.seed, "shape", name))
+        return HandShape.sample(rng, scale=style.hand_scale, side=style.side)
+
+    def episodes(self, loop_index: int = 0) -> Iterator[tuple[Episode, str, Timeline]]:
+        """Yields (episode, user, timeline) in order; the same for the same loop index."""
+        for index, episode in enumerate(self.scenario.episodes):
+            user = self.scenario.user_of(episode)
+            rng = np.random.default_rng(_seed(self.scenario.seed, "episode", str(loop_index),
+                                              str(index)))
+            yield episode, user, self.timeline(episode, self.scenario.users[user], rng)
+
+    def duration(self) -> float:
+        """Returns the scenario's length in seconds (without building any hand)."""
+        return sum(len(timeline) for _, _, timeline in self.episodes()) / self.rate_hz
+
+    def frames(self, loop_index: int = 0) -> Iterator[SourceFrame]:
+        """Yields every frame of the scenario, t counting from 0."""
+        t0 = 0.0
+        for episode, user, timeline in self.episodes(loop_index):
+            yield from self._render(timeline, user, episode, t0)
+            t0 += len(timeline) / self.rate_hz
+
+    def timeline(self, episode: Episode, style: UserStyle, rng: np.random.Generator
+                 ) -> Timeline:
+        """Returns the motion of one episode (no hand geometry yet)."""
+        builder = TimelineBuilder(self.rate_hz, ENTRY_MM, neutral_pose())
+        builder.hidden(episode.pause_s)
+        builder.move_to(CENTRE_MM + rng.normal(0, 8, 3), 0.6 / style.speed, "enter")
+        if episode.preparation:
+            builder.hold(0.3 / style.speed, "prepare")
+        bow_sign = 1.0 if rng.random() < 0.5 else -1.0
+        dropout_at = None
+        for step in episode.gestures:
+            if step.dynamic:
+                self._stroke(builder, step, style, rng, bow_sign)
+            else:
+                dropout_at = dropout_at or builder.frames + int(0.4 * self.rate_hz)
+                self._static(builder, step, style, rng)
+        builder.move_to(EXIT_MM, 0.6 / style.speed, "leave")
+        builder.hold(0.2, "leave")
+        if episode.dropout_frames:
+            builder.hide_frames(dropout_at or builder.frames // 2, episode.dropout_frames)
+        return builder.build(style.tremor_mm, rng)
+
+    def _static(self, builder: TimelineBuilder, step: GestureStep, style: UserStyle,
+                rng: np.random.Generator) -> None:
+        pose = gesture_pose(step.gesture, rng, variation=style.pose_variation)
+        builder.move_to(CENTRE_MM + rng.normal(0, 10, 3), 0.25 / style.speed, "pose",
+                        step.gesture)
+        builder.key_pose(pose)
+        builder.hold(step.hold_s or style.hold_s, "pose", step.gesture)
+        builder.key_pose(pose)
+        builder.hold(0.25 / style.speed, "return")
+        builder.key_pose(neutral_pose())
+
+    def _stroke(self, builder: TimelineBuilder, step: GestureStep, style: UserStyle,
+                rng: np.random.Generator, bow_sign: float) -> None:
+        centre = CENTRE_MM + rng.normal(0, 6, 3)
+        builder.move_to(centre, 0.35 / style.speed, "return")
+        builder.hold(0.25 / style.speed, "prepare")  # strokes start from rest in the centre
+        if step.gesture == "rotate":
+            angle = np.radians(step.angle_deg) * (1 if style.side == "right" else -1)
+            builder.roll_to(angle, 0.6 / style.speed, "stroke", "rotate")
+            builder.hold(0.3 / style.speed, "stroke", "rotate")
+            builder.roll_to(0.0, 1.0 / style.speed, "return")
+            return
+        direction = SWIPE_DIRECTIONS[step.gesture]
+        length = STROKE_MM * style.amplitude * rng.uniform(0.9, 1.1)
+        sideways = np.array([direction[1], -direction[0], 0.0])
+        bow = bow_sign * style.curvature * length * sideways
+        builder.move_to(centre + direction * length, 0.45 / style.speed * rng.uniform(0.9, 1.1),
+                        "stroke", step.gesture, bow=bow)
+        builder.hold(0.15 / style.speed, "stroke", step.gesture)
+        builder.move_to(centre, 0.9 / style.speed, "return")  # slower, from outside the centre
+
+    def _render(self, timeline: Timeline, user: str, episode: Episode, t0: float
+                ) -> Iterator[SourceFrame]:
+        shape = self.shapes[user]
+        velocity = timeline.velocity()
+        hand_id, was_visible = self._next_hand_id, False
+        for i in range(len(timeline)):
+            t = t0 + i / self.rate_hz
+            gaze = episode.gaze if timeline.phase[i] != "hidden" else None
+            if not timeline.visible[i]:
+                was_visible = False
+                yield SourceFrame(t, [], user, gaze, None)
+                continue
+            if not was_visible:  # a hand (re)entering view gets a new id, as on a real sensor
+                hand_id, self._next_hand_id = self._next_hand_id, self._next_hand_id + 1
+                was_visible = True
+            pose = timeline.pose_at(i, blend)
+            if timeline.roll[i]:
+                pose = pose.with_extra_roll(timeline.roll[i])
+            hand = build_hand(shape, pose, timeline.palm[i], velocity[i], hand_id=hand_id)
+            yield SourceFrame(t, [hand], user, gaze, timeline.label[i])
