@@ -150,7 +150,12 @@ class LeapBridge(Service):
         if s.source == "replay":
             return ReplaySource(s.file, s.speed, s.loop, s.rate_hz, s.device)
         scenario = self._scenario(load_scenario(s.scenario)) if s.scenario else None
-        return SimulatedStream(s.rate_hz, scenario, s.loop, s.device or "simulated", s.speed)
+        return SimulatedStream(s.rate_hz, scenario, s.loop, s.device or "simulated", s.speed,
+                               self.resolve_target, self.to_base)
+
+    def resolve_target(self, target: str | list[float]) -> list[float] | None:
+        """Returns a gaze target in the base frame: a point as is, an object by its name."""
+        return self.objects.get(target) if isinstance(target, str) else target
 
     def _scenario(self, scenario: Scenario) -> Scenario:
         if self.settings.seed is not None:
@@ -225,10 +230,10 @@ class LeapBridge(Service):
     def _publish_gaze(self, target, now: float) -> None:
         if now - self._last_gaze < 1.0 / self.settings.gaze_rate_hz:
             return
-        point = self.objects.get(target) if isinstance(target, str) else target
+        point = self.resolve_target(target)
         if point is None:
-            self.ctx.rejects.warning("gaze", f"gaze target {target!r} is not in the latest "
-                                             "scene; no gaze published")
+            self.ctx.rejects.warning(f"gaze:{target}", f"gaze target {target!r} is not in the "
+                                                       "latest scene; no gaze published")
             return
         noise = self._gaze_rng.normal(0.0, self.stream.gaze_noise_m(), 3)
         self.ctx.publish(keys.GAZE, {"v": wire.SCHEMA_VERSION, "ts": now,

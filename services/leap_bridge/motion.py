@@ -154,7 +154,8 @@ class TimelineBuilder:
         self._append(np.repeat(self.position[None], n, 0), np.full(n, self.roll_angle), label,
                      phase)
 
-    def roll_to(self, angle_rad: float, seconds: float, phase: str, label: str | None) -> None:
+    def roll_to(self, angle_rad: float, seconds: float, phase: str, label: str | None = None
+                ) -> None:
         """Minimum-jerk palm roll to an absolute angle, staying in place."""
         n = self._frames(seconds)
         s = min_jerk(np.arange(1, n + 1) / n)

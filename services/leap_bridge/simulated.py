@@ -12,8 +12,9 @@ user's name, so a scenario is reproducible frame by frame.
 from __future__ import annotations
 
 import zlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -27,6 +28,7 @@ from cbgo.services.leap_bridge.motion import (
     TimelineBuilder,
 )
 from cbgo.services.leap_bridge.scenario import Episode, GestureStep, Scenario, UserStyle
+from cbgo.services.leap_bridge.transform import base_to_leap
 
 STROKE_MM = 160.0  # swipe length of an average user
 SWIPE_DIRECTIONS = {
@@ -54,6 +56,13 @@ class SourceFrame:
     label: str | None = None
 
 
+def _angles(direction) -> tuple[float, float]:
+    """Returns (pitch, yaw) of a Leap-frame direction in the hand model's convention."""
+    d = np.asarray(direction, dtype=float)
+    d = d / np.linalg.norm(d)
+    return float(np.arcsin(np.clip(d[1], -1, 1))), float(np.arctan2(-d[0], -d[2]))
+
+
 def _seed(scenario_seed: int, *parts: str) -> int:
     return (scenario_seed * 1_000_003 + zlib.crc32("/".join(parts).encode())) % (2**32)
 
@@ -64,11 +73,17 @@ class SimulatedUser:
     Args:
         scenario: what to perform.
         rate_hz: frame rate of the simulated sensor.
+        resolve: turns a gaze target (object name or point) into a base-frame point (m), or
+            None if unknown; a pointing hand aims its index finger at it.
+        to_base: the Leap(mm)→base(m) transform, needed for aiming.
     """
 
-    def __init__(self, scenario: Scenario, rate_hz: float):
+    def __init__(self, scenario: Scenario, rate_hz: float,
+                 resolve: Callable[[str | list[float]], Any] | None = None,
+                 to_base: np.ndarray | None = None):
         self.scenario = scenario
         self.rate_hz = rate_hz
+        self.resolve, self.to_base = resolve, to_base
         self.shapes = {name: self._shape(name, style) for name, style in scenario.users.items()}
         self._next_hand_id = 1
 
@@ -134,8 +149,8 @@ class SimulatedUser:
         builder.move_to(centre, 0.35 / style.speed, "return")
         builder.hold(0.25 / style.speed, "prepare")  # strokes start from rest in the centre
         if step.gesture == "rotate":
-            angle = np.radians(step.angle_deg) * (1 if style.side == "right" else -1)
-            builder.roll_to(angle, 0.6 / style.speed, "stroke", "rotate")
+            # roll > 0 raises the thumb side on either hand (the model keeps anatomy).
+            builder.roll_to(np.radians(step.angle_deg), 0.6 / style.speed, "stroke", "rotate")
             builder.hold(0.3 / style.speed, "stroke", "rotate")
             builder.roll_to(0.0, 1.0 / style.speed, "return")
             return
@@ -152,7 +167,7 @@ class SimulatedUser:
                 ) -> Iterator[SourceFrame]:
         shape = self.shapes[user]
         velocity = timeline.velocity()
-        hand_id, was_visible = self._next_hand_id, False
+        hand_id, was_visible, aim = self._next_hand_id, False, None
         for i in range(len(timeline)):
             t = t0 + i / self.rate_hz
             gaze = episode.gaze if timeline.phase[i] != "hidden" else None
@@ -165,6 +180,32 @@ class SimulatedUser:
                 was_visible = True
             pose = timeline.pose_at(i, blend)
             if timeline.roll[i]:
-                pose = pose.with_extra_roll(timeline.roll[i])
+                pose = pose.rotated(roll=timeline.roll[i])
+            if timeline.label[i] == "point" and gaze is not None:
+                aim = aim or self._aim(shape, pose, timeline.palm[i], gaze)
+                pose = pose.rotated(pitch=aim[0], yaw=aim[1])
+            elif timeline.label[i] != "point":
+                aim = None
             hand = build_hand(shape, pose, timeline.palm[i], velocity[i], hand_id=hand_id)
             yield SourceFrame(t, [hand], user, gaze, timeline.label[i])
+
+    def _aim(self, shape: HandShape, pose, palm: np.ndarray, gaze) -> tuple[float, float]:
+        """Returns the (pitch, yaw) change that points the index finger at the gaze target.
+
+        The target is resolved to the base frame and brought into the Leap frame; two
+        corrections on the built hand's measured index direction converge to within a degree.
+        """
+        target = self.resolve(gaze) if self.resolve else None
+        if target is None or self.to_base is None:
+            return (0.0, 0.0)
+        wanted = base_to_leap(self.to_base, target) - palm
+        pitch_w, yaw_w = _angles(wanted)
+        mirror = 1.0 if shape.side == "right" else -1.0  # yaw > 0 turns towards the thumb
+        d_pitch = d_yaw = 0.0
+        for _ in range(2):
+            hand = build_hand(shape, pose.rotated(pitch=d_pitch, yaw=d_yaw), palm)
+            index = hand["fingers"][1]["bones"]
+            pitch, yaw = _angles(np.subtract(index[3]["next_joint"], index[1]["prev_joint"]))
+            d_pitch += pitch_w - pitch
+            d_yaw += mirror * (yaw_w - yaw)
+        return (d_pitch, d_yaw)

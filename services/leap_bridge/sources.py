@@ -27,13 +27,17 @@ class SimulatedStream:
         scenario: a scenario to play at start, or None.
         loop: play each scenario again when it ends.
         device: the device label in frames.
+        speed: playback speed factor.
+        resolve: gaze target -> base-frame point (see SimulatedUser).
+        to_base: the Leap->base transform (for aiming a pointing hand).
     """
 
     kind = "simulated"
 
     def __init__(self, rate_hz: float, scenario: Scenario | None, loop: bool, device: str,
-                 speed: float = 1.0):
+                 speed: float = 1.0, resolve=None, to_base=None):
         self.rate_hz, self.loop, self.device, self.speed = rate_hz, loop, device, speed
+        self.resolve, self.to_base = resolve, to_base
         self._pending: queue.Queue = queue.Queue()
         self._playing: str | None = None
         self._gaze_noise = 0.0
@@ -66,7 +70,8 @@ class SimulatedStream:
                 t += dt
                 continue
             self._playing = scenario.name
-            for frame in SimulatedUser(scenario, self.rate_hz).frames(loops):
+            user = SimulatedUser(scenario, self.rate_hz, self.resolve, self.to_base)
+            for frame in user.frames(loops):
                 self._gaze_noise = scenario.users[frame.user].gaze_noise_m
                 frame.t = t
                 t += dt

@@ -95,7 +95,8 @@ class RateLimited:
                 self._suppressed[kind] = self._suppressed.get(kind, 0) + 1
                 if now - self._last_summary.get(kind, 0.0) < self.interval_s:
                     return
-                count, self._suppressed[kind] = self._suppressed[kind], 0
+                hidden, self._suppressed[kind] = self._suppressed[kind] - 1, 0
                 self._last_summary[kind] = now
-                message = f"{message} (and {count - 1} more like it since the last summary)"
+                if hidden:
+                    message = f"{message} ({hidden} more like it were not logged)"
         self.log.warning(message, extra=kv(**fields))

@@ -1,0 +1,113 @@
+"""leap-bridge through real processes: rate, validity, gaze resolution, play on demand."""
+
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from cbgo import wire
+from cbgo.examples import example
+
+CLI = [sys.executable, "-m", "cbgo.cli.main"]
+
+
+class Collector:
+    """Collects decoded messages on a key from the test's own session."""
+
+    def __init__(self, stack, suffix):
+        self.items = []
+        self.lock = threading.Lock()
+        stack.session().declare_subscriber(stack.keys.resolve(suffix), self._on)
+
+    def _on(self, sample):
+        with self.lock:
+            self.items.append((time.perf_counter(), wire.decode(sample.payload.to_bytes())))
+
+    def wait(self, predicate, timeout=20.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self.lock:
+                found = [m for _, m in self.items if predicate(m)]
+            if found:
+                return found
+            time.sleep(0.05)
+        raise AssertionError(f"no matching message within {timeout} s")
+
+    def window(self, seconds):
+        with self.lock:
+            start = len(self.items)
+        time.sleep(seconds)
+        with self.lock:
+            return self.items[start:]
+
+
+def put(stack, suffix, message):
+    pub = stack.session().declare_publisher(stack.keys.resolve(suffix))
+    deadline = time.monotonic() + 5
+    while not pub.matching_status.matching and time.monotonic() < deadline:
+        time.sleep(0.01)
+    pub.put(wire.encode(message))
+
+
+@pytest.mark.parametrize("rate", [60, 120])
+def test_cbgo_up_leap_bridge_streams_valid_frames_at_the_configured_rate(stack, rate):
+    stack.spawn("up", [*CLI, "up", "leap-bridge", "--router-listen", stack.endpoint],
+                env={"CBGO_SCENARIO": "demo", "CBGO_LOOP": "true", "CBGO_RATE_HZ": str(rate)})
+    stack.wait_alive(["router", "leap-bridge"])
+    frames = Collector(stack, "hands/frame")
+    frames.wait(lambda m: m["hands"])
+    got = frames.window(4.0)
+    stamps = np.array([t for t, _ in got])
+    measured = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+    assert abs(measured - rate) / rate < 0.05, f"{measured:.2f} Hz for {rate} Hz"
+    for _, message in got:
+        wire.validate(message, wire.HANDS_FRAME, "cbgo/hands/frame")
+    seqs = [m["seq"] for _, m in got]
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+    assert all(m["source"] == "simulated" and len(m["to_base"]) == 16 for _, m in got)
+    assert any(m["hands"] for _, m in got)
+
+
+def test_gaze_follows_an_object_named_in_the_scene(stack):
+    stack.start_router()
+    stack.start_service("leap-bridge", "--scenario", "demo", "--loop")
+    stack.wait_alive(["router", "leap-bridge"])
+    gaze = Collector(stack, "gaze")
+    scene = example("scene/state")
+    put(stack, "scene/state", scene)
+    cup = np.array(next(o["position"] for o in scene["objects"] if o["name"] == "cup1"))
+    found = gaze.wait(lambda m: np.linalg.norm(np.array(m["point"]) - cup) < 0.06)
+    assert found[0]["source"] == "simulated"
+    users = Collector(stack, "user").wait(lambda m: True)
+    assert users[0]["user"] == "user1"
+
+
+def test_the_simulated_user_idles_until_asked_to_play_a_scenario(stack):
+    stack.start_router()
+    stack.start_service("leap-bridge")
+    stack.wait_alive(["router", "leap-bridge"])
+    frames = Collector(stack, "hands/frame")
+    idle = frames.window(1.0)
+    assert idle and not any(m["hands"] for _, m in idle)
+    (ok, reply), = stack.query("cbgo/@ctl/leap-bridge/play",
+                               {"episodes": [{"gestures": ["grab"], "pause_s": 0.2}]})
+    assert ok and reply["episodes"] == 1 and 2.0 < reply["duration_s"] < 6.0
+    frames.wait(lambda m: m["hands"] and m["hands"][0]["grab_strength"] > 0.6)
+    (ok, reason), = stack.query("cbgo/@ctl/leap-bridge/play", {"episodes": [{"gestures":
+                                                                              ["wave"]}]})
+    assert not ok and "unknown gesture 'wave'" in reason
+
+
+def test_a_replay_without_a_file_is_a_configuration_error(stack):
+    proc = stack.start_service("leap-bridge", "--source", "replay")
+    assert proc.wait(20) == 2
+    assert "--source replay needs a recording" in proc.log()
+
+
+def test_a_missing_leap_driver_is_reported_with_what_to_install(stack):
+    stack.start_router()
+    proc = stack.start_service("leap-bridge", "--source", "leap")
+    assert proc.wait(20) == 2
+    assert "Ultraleap Python bindings are not installed" in proc.log()
