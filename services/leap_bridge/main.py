@@ -29,7 +29,7 @@ from cbgo import keys, wire
 from cbgo.errors import ConfigError, DeviceError, QueryError
 from cbgo.runtime import EXIT_DEVICE, Service, main_for
 from cbgo.services.leap_bridge.scenario import Scenario, load_scenario, parse_scenario
-from cbgo.services.leap_bridge.simulated import SimulatedUser, SourceFrame
+from cbgo.services.leap_bridge.simulated import SourceFrame
 from cbgo.services.leap_bridge.sources import LiveSource, ReplaySource, SimulatedStream
 from cbgo.services.leap_bridge.transform import default_to_base, parse_to_base
 
@@ -254,8 +254,10 @@ class LeapBridge(Service):
 
 
 def _normalise_argv(argv: list[str]) -> list[str]:
-    """Accepts ``--source replay FILE`` and ``--source simulated FILE`` as the issue writes
-    them, by turning the trailing value into ``--file FILE`` / ``--scenario FILE``."""
+    """Accepts ``--source replay FILE`` and ``--source simulated FILE``.
+
+    The trailing value becomes ``--file FILE`` / ``--scenario FILE``.
+    """
     out = list(argv)
     for i, arg in enumerate(out[:-2]):
         if arg == "--source" and not out[i + 2].startswith("-"):

@@ -46,3 +46,7 @@ class ConfigError(CbgoError):
 
 class DeviceError(CbgoError):
     """A device fault (sensor or robot) that the service could not recover from."""
+
+
+class RecordingError(CbgoError):
+    """A recording (MCAP or toolbox JSON) that is missing, truncated, corrupt or malformed."""

@@ -12,7 +12,7 @@ import time
 import msgpack
 import pytest
 
-from cbgo import wire
+from cbgo import registry, wire
 from cbgo.examples import example
 
 CLI = [sys.executable, "-m", "cbgo.cli.main"]
@@ -56,10 +56,13 @@ def probe(stack, probe_argv):
 def test_cbgo_up_starts_the_router_reports_ready_and_stops_cleanly(stack):
     up = stack.spawn("up", [*CLI, "up", "--router-listen", stack.endpoint])
     stack.wait_alive(["router"])
-    wait_for_line(up, "ready: router alive")
+    wait_for_line(up, "ready: ")
+    built = [s.name for s in registry.available()]
+    ready = next(line for line in up.log().splitlines() if "ready: " in line)
+    assert all(name in ready for name in ["router", *built])
     listing = cli(stack, "ls")
     assert listing.returncode == 0, listing.stderr
-    assert listing.stdout.startswith("router")
+    assert "router" in listing.stdout
     code, seconds = stack.stop("up", signal.SIGINT)
     assert code == 0
     assert seconds < 7.0

@@ -1,8 +1,10 @@
-"""Run a benchmark and print its figures (`cbgo bench --help` lists them).
+"""Run a benchmark and print its figures.
 
 Examples::
 
     cbgo bench wire
+    cbgo bench hands --per-gesture 200
+    cbgo bench wire --help          # a benchmark's own options
 """
 
 from __future__ import annotations
@@ -14,16 +16,16 @@ from cbgo.bench import BENCHES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Adds one sub-command per benchmark."""
-    benches = parser.add_subparsers(dest="bench", metavar="BENCH", required=True)
-    for name, summary in BENCHES.items():
-        module = importlib.import_module(f"cbgo.bench.{name}")
-        sub = benches.add_parser(name, help=summary, description=module.__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-        module.add_arguments(sub)
-        sub.set_defaults(bench_run=module.run)
+    """Adds the benchmark name; its own options are parsed by the benchmark (lazy import)."""
+    parser.add_argument("bench", choices=sorted(BENCHES), metavar="BENCH",
+                        help="; ".join(f"{name}: {text}" for name, text in BENCHES.items()))
+    parser.add_argument("args", nargs=argparse.REMAINDER, help="the benchmark's own options")
 
 
 def run(args: argparse.Namespace) -> int:
-    """Runs the chosen benchmark."""
-    return args.bench_run(args)
+    """Imports the chosen benchmark, parses its options and runs it."""
+    module = importlib.import_module(f"cbgo.bench.{args.bench}")
+    parser = argparse.ArgumentParser(prog=f"cbgo bench {args.bench}", description=module.__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    module.add_arguments(parser)
+    return module.run(parser.parse_args(args.args))

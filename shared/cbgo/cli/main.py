@@ -31,19 +31,30 @@ VERBS = {
     "pub": ("pub", "publish a JSON message as msgpack"),
     "wait-alive": ("wait_alive", "wait until services are alive (for scripts, healthchecks)"),
     "bench": ("bench", "run a benchmark and print its figures"),
+    "record": ("record", "record traffic to an MCAP file"),
+    "replay": ("replay", "replay an MCAP recording onto the network"),
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Returns the parser of `cbgo` with every verb."""
+def build_parser(verb: str | None = None) -> argparse.ArgumentParser:
+    """Returns the parser of `cbgo`.
+
+    Only the chosen verb's module is imported (some pull in torch), so `cbgo ls` starts fast;
+    without a known verb, every verb is listed with its summary for --help.
+    """
     parser = argparse.ArgumentParser(
         prog="cbgo", description="cbgo: command a robot arm with hand gestures read in context.",
         epilog="Run `cbgo VERB --help` for a verb's options and examples.")
     parser.add_argument("--version", action="version", version=f"cbgo {cbgo.__version__}")
     verbs = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
-    for verb, (module, summary) in VERBS.items():
+    for name, (module, summary) in VERBS.items():
+        if verb is not None and name != verb:
+            continue
+        if verb is None:
+            verbs.add_parser(name, help=summary)
+            continue
         mod = importlib.import_module(f"cbgo.cli.{module}")
-        sub = verbs.add_parser(verb, help=summary, description=mod.__doc__,
+        sub = verbs.add_parser(name, help=summary, description=mod.__doc__,
                                formatter_class=argparse.RawDescriptionHelpFormatter)
         mod.add_arguments(sub)
         sub.set_defaults(run=mod.run)
@@ -59,7 +70,7 @@ def main(argv: list[str] | None = None) -> None:
         from cbgo.runtime import run
 
         sys.exit(run(Router, argv[1:]))
-    args = build_parser().parse_args(argv)
+    args = build_parser(argv[0] if argv and argv[0] in VERBS else None).parse_args(argv)
     try:
         sys.exit(args.run(args))
     except KeyboardInterrupt:

@@ -1,0 +1,15 @@
+"""Hands: the 57 static-gesture features, a kinematic hand model and calibrated gesture poses.
+
+Modules:
+
+- ``features``: the paper's 57 features of a contract hand (``cbgo/hands/frame``), exactly as
+  the real recordings define them (``hand_features``, ``hands_features``).
+- ``model``: ``HandShape`` (a person's anatomy), ``HandPose`` (joint angles and palm
+  orientation), ``build_hand`` (every field of a contract hand), ``blend``, ``neutral_pose``.
+- ``poses``: the 8 static gestures as calibrated mean poses and spreads (``gesture_pose``).
+- ``calibrate``: fits ``poses.json`` to the real recordings (``python -m cbgo.hands.calibrate``).
+- ``data``: the vendored real recordings (``load_real_features``).
+
+Rule: everything here is pure computation on numpy (torch only for the calibration); nothing
+touches Zenoh. ``cbgo bench hands`` measures how real the simulated hands look.
+"""
