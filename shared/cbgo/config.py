@@ -134,7 +134,9 @@ def _coerce(value: Any, tp: Any, name: str) -> Any:
     try:
         if origin is list:
             (item,) = typing.get_args(base) or (str,)
-            items = value.split(",") if isinstance(value, str) else list(value)
+            # "a,b" or repeated flags, or both: --sensor-position 1,0,0
+            items = [part for x in ([value] if isinstance(value, str) else value)
+                     for part in (x.split(",") if isinstance(x, str) else [x])]
             items = [x.strip() if isinstance(x, str) else x for x in items]
             return [_coerce(x, item, name) for x in items if x != ""]
         if origin is Literal:

@@ -3,6 +3,7 @@
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -111,3 +112,51 @@ def test_a_missing_leap_driver_is_reported_with_what_to_install(stack):
     proc = stack.start_service("leap-bridge", "--source", "leap")
     assert proc.wait(20) == 2
     assert "Ultraleap Python bindings are not installed" in proc.log()
+
+
+TOOLBOX_JSON = Path(__file__).parents[1] / "artifacts" / "toolbox" / "two_hands.json"
+
+
+def test_a_toolbox_json_recording_is_replayed_as_contract_frames(stack):
+    stack.start_router()
+    stack.wait_alive(["router"])
+    frames = Collector(stack, "hands/frame")
+    stack.start_service("leap-bridge", "--source", "replay", str(TOOLBOX_JSON),
+                        "--loop")
+    stack.wait_alive(["leap-bridge"])
+    found = frames.wait(lambda m: len(m["hands"]) == 2)
+    message = found[0]
+    wire.validate(message, wire.HANDS_FRAME)
+    assert message["source"] == "replay" and message["device"] == "two_hands.json"
+    assert {h["side"] for h in message["hands"]} == {"left", "right"}
+
+
+def test_an_mcap_recording_is_replayed_with_its_hands_order_and_pace(stack, tmp_path):
+    from cbgo.recording import Recorder
+    from cbgo.services.leap_bridge.scenario import load_scenario
+    from cbgo.services.leap_bridge.simulated import SimulatedUser
+
+    path = tmp_path / "static.mcap"
+    recorded = [f for f in SimulatedUser(load_scenario("static-all"), 60.0).frames()][:240]
+    with Recorder(path) as recorder:
+        for i, frame in enumerate(recorded):
+            message = {"v": 1, "ts": 1000.0 + frame.t, "seq": i, "source": "simulated",
+                       "device": "sim", "hands": frame.hands}
+            recorder.write("cbgo/hands/frame", wire.encode(message), int((1000 + frame.t) * 1e9))
+    stack.start_router()
+    stack.wait_alive(["router"])
+    frames = Collector(stack, "hands/frame")
+    stack.start_service("leap-bridge", "--source", "replay", str(path))
+    first_palm = next(f.hands[0]["palm_position"] for f in recorded if f.hands)
+    frames.wait(lambda m: m["hands"] and m["hands"][0]["palm_position"] == first_palm)
+    time.sleep(4.5)
+    with frames.lock:
+        items = list(frames.items)
+    palms = [(t, m["hands"][0]["palm_position"]) for t, m in items if m["hands"]]
+    wanted = [f.hands[0]["palm_position"] for f in recorded if f.hands]
+    start = [p for _, p in palms].index(first_palm)
+    replayed = palms[start:start + len(wanted)]
+    assert [p for _, p in replayed] == wanted
+    stamps = np.array([t for t, _ in replayed])
+    assert abs((stamps[-1] - stamps[0]) - (len(wanted) - 1) / 60.0) < 0.05
+    assert all(m["source"] == "replay" for _, m in items)

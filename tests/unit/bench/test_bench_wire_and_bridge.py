@@ -14,3 +14,11 @@ def test_router_latency_receives_every_frame_sent_through_a_real_router():
     lat = router_latency(count=30, rate=200)
     assert lat["frames_received"] == 30
     assert 0 < lat["p50_ms"] <= lat["p99_ms"] <= lat["max_ms"]
+
+
+def test_the_bridge_benchmark_measures_a_real_leap_bridge_stream():
+    from cbgo.bench.bridge import measure
+
+    s = measure(60.0, 1.5, "demo")
+    assert s["frames"] > 60 and s["invalid"] == 0
+    assert 50.0 < s["rate_hz"] < 70.0
