@@ -28,10 +28,10 @@ import numpy as np
 from cbgo import keys, wire
 from cbgo.errors import ConfigError, DeviceError, QueryError
 from cbgo.runtime import EXIT_DEVICE, Service, main_for
-from cbgo.services.leap_bridge.scenario import Scenario, load_scenario, parse_scenario
-from cbgo.services.leap_bridge.simulated import SourceFrame
 from cbgo.services.leap_bridge.sources import LiveSource, ReplaySource, SimulatedStream
-from cbgo.services.leap_bridge.transform import default_to_base, parse_to_base
+from cbgo.simuser.scenario import Scenario, load_scenario, parse_scenario
+from cbgo.simuser.user import SourceFrame
+from cbgo.transform import default_to_base, parse_to_base
 
 SOURCES = ("simulated", "replay", "leap")
 USER_REPEAT_S = 2.0  # republish the user so that late joiners learn it

@@ -15,8 +15,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from cbgo.errors import ConfigError, RecordingError
-from cbgo.services.leap_bridge.scenario import Scenario
-from cbgo.services.leap_bridge.simulated import SimulatedUser, SourceFrame
+from cbgo.simuser.scenario import Scenario
+from cbgo.simuser.user import SimulatedUser, SourceFrame
 
 
 class SimulatedStream:

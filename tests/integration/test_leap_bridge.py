@@ -133,8 +133,8 @@ def test_a_toolbox_json_recording_is_replayed_as_contract_frames(stack):
 
 def test_an_mcap_recording_is_replayed_with_its_hands_order_and_pace(stack, tmp_path):
     from cbgo.recording import Recorder
-    from cbgo.services.leap_bridge.scenario import load_scenario
-    from cbgo.services.leap_bridge.simulated import SimulatedUser
+    from cbgo.simuser.scenario import load_scenario
+    from cbgo.simuser.user import SimulatedUser
 
     path = tmp_path / "static.mcap"
     recorded = [f for f in SimulatedUser(load_scenario("static-all"), 60.0).frames()][:240]

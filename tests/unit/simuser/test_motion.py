@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from cbgo.services.leap_bridge.motion import (
+from cbgo.simuser.motion import (
     CENTRE_MM,
     ENTRY_MM,
     TimelineBuilder,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from cbgo.errors import ConfigError
-from cbgo.services.leap_bridge.transform import (
+from cbgo.transform import (
     base_to_leap,
     default_to_base,
     leap_to_base,

@@ -3,7 +3,7 @@
 import pytest
 
 from cbgo.errors import ConfigError
-from cbgo.services.leap_bridge.scenario import BUNDLED, load_scenario, parse_scenario
+from cbgo.simuser.scenario import BUNDLED, load_scenario, parse_scenario
 
 
 def test_every_bundled_scenario_loads():

@@ -20,15 +20,15 @@ import numpy as np
 
 from cbgo.hands.model import HandShape, blend, build_hand, neutral_pose
 from cbgo.hands.poses import gesture_pose
-from cbgo.services.leap_bridge.motion import (
+from cbgo.simuser.motion import (
     CENTRE_MM,
     ENTRY_MM,
     EXIT_MM,
     Timeline,
     TimelineBuilder,
 )
-from cbgo.services.leap_bridge.scenario import Episode, GestureStep, Scenario, UserStyle
-from cbgo.services.leap_bridge.transform import base_to_leap
+from cbgo.simuser.scenario import Episode, GestureStep, Scenario, UserStyle
+from cbgo.transform import base_to_leap
 
 STROKE_MM = 160.0  # swipe length of an average user
 SWIPE_DIRECTIONS = {
