@@ -18,13 +18,13 @@ from cbgo.bench import BENCHES
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the benchmark name; its own options are parsed by the benchmark (lazy import)."""
     parser.add_argument("bench", choices=sorted(BENCHES), metavar="BENCH",
-                        help="; ".join(f"{name}: {text}" for name, text in BENCHES.items()))
+                        help="; ".join(f"{name}: {text}" for name, (_, text) in BENCHES.items()))
     parser.add_argument("args", nargs=argparse.REMAINDER, help="the benchmark's own options")
 
 
 def run(args: argparse.Namespace) -> int:
     """Imports the chosen benchmark, parses its options and runs it."""
-    module = importlib.import_module(f"cbgo.bench.{args.bench}")
+    module = importlib.import_module(BENCHES[args.bench][0])
     parser = argparse.ArgumentParser(prog=f"cbgo bench {args.bench}", description=module.__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     module.add_arguments(parser)

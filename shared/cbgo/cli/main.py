@@ -31,6 +31,7 @@ VERBS = {
     "pub": ("pub", "publish a JSON message as msgpack"),
     "wait-alive": ("wait_alive", "wait until services are alive (for scripts, healthchecks)"),
     "bench": ("bench", "run a benchmark and print its figures"),
+    "train": ("train", "train a model and write it where its service loads it"),
     "record": ("record", "record traffic to an MCAP file"),
     "replay": ("replay", "replay an MCAP recording onto the network"),
 }

@@ -1,0 +1,77 @@
+"""The variational Bayesian MLP: KL, training, posterior-averaged predictions, save/load."""
+
+import numpy as np
+import pytest
+import torch
+
+from cbgo import bayes
+from cbgo.errors import ConfigError
+from cbgo.metrics import balanced_accuracy, expected_calibration_error
+
+
+def blobs(n=600, seed=0):
+    rng = np.random.default_rng(seed)
+    centres = np.array([[0, 0], [3, 0], [0, 3]])
+    y = rng.integers(0, 3, n)
+    return centres[y] + rng.normal(0, 0.7, (n, 2)), y
+
+
+def test_the_kl_of_a_posterior_equal_to_the_prior_is_zero():
+    layer = bayes.BayesLinear(3, 2, prior_sigma=1.0)
+    with torch.no_grad():
+        layer.w_mu.zero_()
+        layer.b_mu.zero_()
+        layer.w_rho.fill_(float(np.log(np.e - 1)))  # softplus = 1 = prior sigma
+        layer.b_rho.fill_(float(np.log(np.e - 1)))
+    assert abs(layer.kl().item()) < 1e-5
+
+
+def test_the_kl_matches_the_closed_form_for_one_weight():
+    layer = bayes.BayesLinear(1, 1, prior_sigma=2.0, bias=False)
+    with torch.no_grad():
+        layer.w_mu.fill_(1.0)
+        layer.w_rho.fill_(float(np.log(np.exp(0.5) - 1)))  # sigma 0.5
+    expected = np.log(2.0 / 0.5) + (0.5**2 + 1.0**2) / (2 * 2.0**2) - 0.5
+    assert abs(layer.kl().item() - expected) < 1e-5
+
+
+def test_training_learns_separable_classes_with_calibrated_probabilities():
+    x, y = blobs()
+    xt, yt = blobs(seed=1)
+    model = bayes.BayesMLP(bayes.Architecture(2, [16], 3))
+    history = bayes.train(model, x, y, bayes.TrainConfig(epochs=60, batch_size=64, lr=0.02))
+    assert history[-1] < history[0]
+    probs = bayes.predict_proba(model, xt, samples=16)
+    assert np.allclose(probs.sum(1), 1.0)
+    assert balanced_accuracy(yt, probs.argmax(1), 3) > 0.9
+    assert expected_calibration_error(probs, yt) < 0.08
+
+
+def test_far_from_the_data_predictions_are_less_certain_than_near_it():
+    x, y = blobs()
+    model = bayes.BayesMLP(bayes.Architecture(2, [16], 3))
+    bayes.train(model, x, y, bayes.TrainConfig(epochs=60, batch_size=64, lr=0.02))
+    near = bayes.predict_proba(model, np.array([[3.0, 0.0]]), samples=64)
+    between = bayes.predict_proba(model, np.array([[1.5, 1.5]]), samples=64)
+    assert near.max() > between.max()
+
+
+def test_a_saved_model_loads_back_with_its_metadata_and_same_predictions(tmp_path):
+    x, y = blobs()
+    model = bayes.BayesMLP(bayes.Architecture(2, [8], 3, activation="relu"))
+    bayes.train(model, x, y, bayes.TrainConfig(epochs=5))
+    std = bayes.Standardizer.fit(x)
+    bayes.save(tmp_path / "m", model, {"names": ["a", "b", "c"], "standardizer": std})
+    loaded = bayes.load(tmp_path / "m.pt")
+    assert loaded.metadata["names"] == ["a", "b", "c"]
+    assert np.allclose(loaded.standardizer(x[:3]), std(x[:3]))
+    assert np.allclose(bayes.predict_proba(loaded.model, x[:5]), bayes.predict_proba(model, x[:5]))
+
+
+def test_loading_a_broken_model_names_the_problem(tmp_path):
+    with pytest.raises(ConfigError, match="cannot load model"):
+        bayes.load(tmp_path / "missing")
+    (tmp_path / "m.json").write_text('{"format": "other"}')
+    torch.save({}, tmp_path / "m.pt")
+    with pytest.raises(ConfigError, match="is not a cbgo-bnn/1 model"):
+        bayes.load(tmp_path / "m")
