@@ -340,6 +340,18 @@ def resolve_zenoh(cli: dict, env: typing.Mapping[str, str] | None = None) -> Zen
     return _layer(ZenohOptions, {}, os.environ if env is None else env, cli, set())
 
 
+def data_dir(env: typing.Mapping[str, str] | None = None) -> Path:
+    """Returns where user data lives (recorded gestures, personal models); not created here.
+
+    ``CBGO_DATA_DIR``, else ``$XDG_DATA_HOME/cbgo``, else ``~/.local/share/cbgo``.
+    """
+    env = os.environ if env is None else env
+    if env.get("CBGO_DATA_DIR"):
+        return Path(env["CBGO_DATA_DIR"]).expanduser()
+    base = env.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(base) / "cbgo"
+
+
 def zenoh_config(options: ZenohOptions, name: str):
     """Returns the zenoh.Config of a process named `name`.
 
