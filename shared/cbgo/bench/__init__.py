@@ -11,4 +11,6 @@ BENCHES = {
              "encode/decode/validate cost per message and latency through a real router"),
     "hands": ("cbgo.bench.hands", "realism of the simulated hand against real Leap recordings"),
     "bridge": ("cbgo.bench.bridge", "leap-bridge frame stream: rate and jitter at 30/60/120 Hz"),
+    "episode": ("cbgo.services.episode.bench",
+                "episode end condition -> summary latency through real processes"),
 }

@@ -34,6 +34,7 @@ VERBS = {
     "train": ("train", "train a model and write it where its service loads it"),
     "record": ("record", "record traffic to an MCAP file"),
     "replay": ("replay", "replay an MCAP recording onto the network"),
+    "plot": ("plot", "draw figures from recordings (the paper's episode figure)"),
 }
 
 

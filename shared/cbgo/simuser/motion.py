@@ -86,6 +86,11 @@ class Timeline:
             return np.zeros_like(self.palm)
         return np.gradient(self.palm, 1.0 / self.rate_hz, axis=0)
 
+    def next_pose(self, index: int) -> Any:
+        """Returns the pose of the first keyframe after `index` (the last one if none)."""
+        after = [p for i, p in self.keyframes if i > index]
+        return after[0] if after else self.keyframes[-1][1]
+
     def pose_at(self, index: int, blend: Callable[[Any, Any, float], Any]) -> Any:
         """Returns the finger pose at a frame, blending the surrounding keyframes."""
         before = [k for k in self.keyframes if k[0] <= index]

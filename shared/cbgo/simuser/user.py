@@ -182,8 +182,12 @@ class SimulatedUser:
             if timeline.roll[i]:
                 pose = pose.rotated(roll=timeline.roll[i])
             if timeline.label[i] == "point" and gaze is not None:
-                aim = aim or self._aim(shape, pose, timeline.palm[i], gaze)
-                pose = pose.rotated(pitch=aim[0], yaw=aim[1])
+                # Aim with the fully formed pointing pose (the keyframe being blended towards),
+                # not the half-formed first frame, so the hold points at the target.
+                formed = timeline.next_pose(i)
+                if aim is None or aim[0] is not formed:
+                    aim = (formed, self._aim(shape, formed, timeline.palm[i], gaze))
+                pose = pose.rotated(pitch=aim[1][0], yaw=aim[1][1])
             elif timeline.label[i] != "point":
                 aim = None
             hand = build_hand(shape, pose, timeline.palm[i], velocity[i], hand_id=hand_id)
@@ -192,20 +196,21 @@ class SimulatedUser:
     def _aim(self, shape: HandShape, pose, palm: np.ndarray, gaze) -> tuple[float, float]:
         """Returns the (pitch, yaw) change that points the index finger at the gaze target.
 
-        The target is resolved to the base frame and brought into the Leap frame; two
-        corrections on the built hand's measured index direction converge to within a degree.
+        The target is resolved to the base frame and brought into the Leap frame; three
+        corrections of the built hand's knuckle-to-tip ray converge to within a degree.
         """
         target = self.resolve(gaze) if self.resolve else None
         if target is None or self.to_base is None:
             return (0.0, 0.0)
-        wanted = base_to_leap(self.to_base, target) - palm
-        pitch_w, yaw_w = _angles(wanted)
+        target_leap = base_to_leap(self.to_base, target)
         mirror = 1.0 if shape.side == "right" else -1.0  # yaw > 0 turns towards the thumb
         d_pitch = d_yaw = 0.0
-        for _ in range(2):
+        for _ in range(3):
             hand = build_hand(shape, pose.rotated(pitch=d_pitch, yaw=d_yaw), palm)
             index = hand["fingers"][1]["bones"]
-            pitch, yaw = _angles(np.subtract(index[3]["next_joint"], index[1]["prev_joint"]))
+            knuckle = np.asarray(index[1]["prev_joint"])
+            pitch_w, yaw_w = _angles(target_leap - knuckle)  # the ray starts at the knuckle
+            pitch, yaw = _angles(np.subtract(index[3]["next_joint"], knuckle))
             d_pitch += pitch_w - pitch
             d_yaw += mirror * (yaw_w - yaw)
         return (d_pitch, d_yaw)

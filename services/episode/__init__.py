@@ -1,0 +1,1 @@
+"""episode: gesture episodes, evidence, the gesture vector g, focus and metric parameters."""

@@ -1,0 +1,90 @@
+"""Episode boundaries from hand visibility, with a debounce.
+
+An episode starts with the first frame that shows a hand and ends once no hand has been seen for
+``debounce_s`` (default 0.15 s), so a tracking dropout of a frame or two does not split it. The
+end condition is met at *last hand frame + debounce*; it is detected by whichever comes first:
+
+- **frame**: a frame (with or without a hand) whose ``ts`` is at least ``debounce_s`` after the
+  last hand frame's. Sensors keep streaming empty frames when nobody is in view, so this is the
+  usual path; it is exact on the frames' clock but waits for the next frame (up to one frame
+  period late). A hand frame after such a gap ends the old episode and starts a new one.
+- **clock**: the service's clock (monotonic, local) says ``debounce_s`` have passed since the
+  last hand frame *arrived*. It catches the end between frames, and when frames stop coming at
+  all (a sensor unplugged, a replay at its end).
+
+Each `Boundary` carries the local clock time at which the end condition was met (last hand
+arrival + debounce), so the service can measure its end → summary latency.
+
+Pure logic: times are passed in, nothing here reads a clock or imports Zenoh.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Boundary:
+    """The start or the end of an episode.
+
+    Attributes:
+        kind: ``start`` or ``end``.
+        ts: the first (start) or last (end) hand frame's time, on the frames' clock.
+        by: what detected it: ``frame`` (the frames' time stamps) or ``clock`` (the local
+            clock: the service's timer, or an empty frame that arrived late).
+        condition_at: local clock time the condition was met: the first hand frame's arrival
+            (start), or the last hand frame's arrival + debounce (end).
+    """
+
+    kind: str
+    ts: float
+    by: str
+    condition_at: float
+
+
+class Segmenter:
+    """Follows hand visibility and reports episode boundaries.
+
+    Args:
+        debounce_s: how long no hand must be seen before the episode ends.
+    """
+
+    def __init__(self, debounce_s: float):
+        if not debounce_s > 0:
+            raise ValueError(f"debounce_s must be positive, got {debounce_s}")
+        self.debounce_s = debounce_s
+        self.open = False
+        self.started_ts = math.nan
+        self.last_hand_ts = math.nan
+        self.last_hand_at = math.nan
+
+    def frame(self, ts: float, now: float, visible: bool) -> list[Boundary]:
+        """Takes one frame; returns the boundaries it causes (end, start, or both).
+
+        Args:
+            ts: the frame's time stamp (frames' clock).
+            now: the local clock when the frame is handled.
+            visible: whether the frame shows at least one hand.
+        """
+        out = []
+        if self.open and ts - self.last_hand_ts >= self.debounce_s:
+            out.append(self._end("frame"))
+        if visible:
+            if not self.open:
+                self.open, self.started_ts = True, ts
+                out.append(Boundary("start", ts, "frame", now))
+            self.last_hand_ts, self.last_hand_at = ts, now
+        elif self.open and now - self.last_hand_at >= self.debounce_s:
+            out.append(self._end("clock"))  # the frame came late: the local clock decides
+        return out
+
+    def tick(self, now: float) -> Boundary | None:
+        """Checks the end condition on the local clock (between frames, or without frames)."""
+        if self.open and now - self.last_hand_at >= self.debounce_s:
+            return self._end("clock")
+        return None
+
+    def _end(self, by: str) -> Boundary:
+        self.open = False
+        return Boundary("end", self.last_hand_ts, by, self.last_hand_at + self.debounce_s)

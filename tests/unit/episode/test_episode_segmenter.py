@@ -1,0 +1,67 @@
+"""Episode boundaries: start on a hand, end after the debounce, by frame time or local clock."""
+
+import pytest
+
+from cbgo.services.episode.segmenter import Segmenter
+
+P = 1 / 60
+
+
+def feed(seg, visible, start=0.0):
+    """Feeds frames at 60 Hz (ts = local clock); returns [(index, boundary)]."""
+    out = []
+    for i, v in enumerate(visible):
+        t = start + i * P
+        out += [(i, b) for b in seg.frame(t, t, v)]
+    return out
+
+
+def test_an_episode_starts_with_the_first_hand_frame():
+    seg = Segmenter(0.15)
+    (i, b), = feed(seg, [False, False, True, True])
+    assert (i, b.kind, b.ts) == (2, "start", 2 * P) and seg.open
+
+
+def test_it_ends_on_the_first_empty_frame_a_debounce_after_the_last_hand():
+    seg = Segmenter(0.15)
+    got = feed(seg, [True] * 10 + [False] * 20)
+    (_, start), (i, end) = got
+    assert end.kind == "end" and end.by == "frame" and end.ts == pytest.approx(9 * P)
+    assert (i - 9) * P >= 0.15 > (i - 10) * P  # the first frame at least 150 ms later
+    assert end.condition_at == pytest.approx(9 * P + 0.15)
+    assert not seg.open
+
+
+def test_a_dropout_shorter_than_the_debounce_does_not_split_the_episode():
+    seg = Segmenter(0.15)
+    got = feed(seg, [True] * 10 + [False] * 2 + [True] * 10 + [False] * 30)
+    assert [b.kind for _, b in got] == ["start", "end"]
+
+
+def test_the_timer_ends_the_episode_when_frames_stop_coming():
+    seg = Segmenter(0.15)
+    feed(seg, [True] * 5)
+    last = 4 * P
+    assert seg.tick(last + 0.149) is None
+    end = seg.tick(last + 0.151)
+    assert end.kind == "end" and end.by == "clock" and end.ts == pytest.approx(last)
+    assert seg.tick(last + 1.0) is None  # only once
+
+
+def test_a_hand_after_a_long_gap_ends_the_old_episode_and_starts_a_new_one():
+    seg = Segmenter(0.15)
+    seg.frame(0.0, 0.0, True)
+    got = seg.frame(0.5, 0.5, True)
+    assert [(b.kind, b.ts) for b in got] == [("end", 0.0), ("start", 0.5)] and seg.open
+
+
+def test_an_empty_frame_that_arrives_late_is_judged_by_the_local_clock():
+    seg = Segmenter(0.15)
+    seg.frame(10.0, 0.0, True)
+    (end,) = seg.frame(10.05, 0.2, False)  # stamped 50 ms later, handled 200 ms later
+    assert end.by == "clock" and end.condition_at == pytest.approx(0.15)
+
+
+def test_the_debounce_must_be_positive():
+    with pytest.raises(ValueError):
+        Segmenter(0.0)
