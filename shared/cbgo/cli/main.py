@@ -34,7 +34,9 @@ VERBS = {
     "train": ("train", "train a model and write it where its service loads it"),
     "record": ("record", "record traffic to an MCAP file"),
     "replay": ("replay", "replay an MCAP recording onto the network"),
+    "sim": ("sim", "talk to the simulator: snapshot, reset"),
     "plot": ("plot", "draw figures from recordings (the paper's episode figure)"),
+    "plan": ("plan", "show the planner's live behaviour tree"),
 }
 
 

@@ -1,0 +1,1 @@
+"""planner: behaviour trees that turn an intent into robot actions, repairing preconditions."""
