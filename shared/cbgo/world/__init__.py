@@ -1,0 +1,21 @@
+"""The symbolic world model shared by intent, planner and the dry robot.
+
+- `cbgo.world.grid`: the 4×4×4 workspace grid in front of the robot (`Grid`, `DEFAULT_GRID`);
+- `cbgo.world.scene`: `Scene`, `SceneObject`, `Robot`, to and from the contract's scene dict;
+- `cbgo.world.actions`: preconditions (`failures`, `check`, `feasible`, `candidates`) and
+  symbolic effects (`apply`) of the eleven actions;
+- `cbgo.world.generate`: random valid scenes as the paper samples them (`random_scene`).
+
+Pure Python and NumPy: no Zenoh, no torch.
+"""
+
+from cbgo.world.actions import (MOVES, OBJECT_AGNOSTIC, Failure, InfeasibleAction, apply,
+                                candidates, check, failures, feasible)
+from cbgo.world.generate import random_scene
+from cbgo.world.grid import DEFAULT_GRID, Grid
+from cbgo.world.scene import Robot, Scene, SceneObject
+
+__all__ = [
+    "DEFAULT_GRID", "MOVES", "OBJECT_AGNOSTIC", "Failure", "Grid", "InfeasibleAction", "Robot",
+    "Scene", "SceneObject", "apply", "candidates", "check", "failures", "feasible", "random_scene",
+]

@@ -1,0 +1,160 @@
+"""Random valid scenes, as the paper samples them (section "Scene generation"); seeded.
+
+1. n = round(N(3.5, 1)) clipped to [2, 7] objects: the first n of `TYPE_ORDER`
+   (cup, drawer, box, cup, drawer, box, cup), named by type and count (cup1, drawer1, box1,
+   cup2, ...), listed in that order.
+2. Placed on the grid's columns — drawers first, then boxes, then cups. Drawers stand in the
+   back row (farthest from the robot) and keep the column in front of them free for their
+   tray; an object landing on an occupied column is stacked on its top object if that is a box
+   or a drawer and the tower stays within `MAX_STACK`, else it is drawn again ("replaced").
+   Table positions are perturbed by up to ±`jitter` m.
+3. Containment and stacking: each drawer, with probability `p_contain`, takes a free cup or box
+   inside; each free cup or box, with probability `p_stack`, moves onto a free box or drawer.
+4. Random states: each drawer open, each cup full, with probability 1/2.
+5. The robot: with probability `p_hold` it holds a random free cup or box, its TCP on a random
+   cell above the lowest level; otherwise its TCP is on a random cell and its gripper open.
+
+Every scene satisfies `Scene.problems() == []`. The same seed gives the same scene.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cbgo.world.grid import DEFAULT_GRID, Column, Grid
+from cbgo.world.scene import (DEFAULT_SIZES, DRAWER_CAPACITY, GRASPABLE, MAX_STACK, SUPPORTS,
+                              Robot, Scene, SceneObject)
+
+TYPE_ORDER = ("cup", "drawer", "box", "cup", "drawer", "box", "cup")
+PLACEMENT_ORDER = ("drawer", "box", "cup")
+MIN_OBJECTS, MAX_OBJECTS = 2, 7
+
+
+def _rng(seed: int | np.random.Generator | None) -> np.random.Generator:
+    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+
+
+def object_count(rng: np.random.Generator) -> int:
+    """Returns round(N(3.5, 1)) clipped to [2, 7]."""
+    return int(np.clip(round(rng.normal(3.5, 1.0)), MIN_OBJECTS, MAX_OBJECTS))
+
+
+def random_scene(seed: int | np.random.Generator | None = None, grid: Grid = DEFAULT_GRID, *,
+                 n_objects: int | None = None, p_contain: float = 0.5, p_stack: float = 0.3,
+                 p_hold: float = 0.5, jitter: float = 0.01) -> Scene:
+    """Returns a random valid scene.
+
+    Args:
+        seed: an int seed, a numpy Generator (advanced in place), or None for fresh entropy.
+        grid: the workspace grid.
+        n_objects: force the object count (2-7) instead of drawing it.
+        p_contain: probability that a drawer gets an object inside.
+        p_stack: probability that a free cup or box is moved onto another object.
+        p_hold: probability that the robot holds an object.
+        jitter: maximum perturbation of table positions, metres.
+    """
+    rng = _rng(seed)
+    n = object_count(rng) if n_objects is None else int(np.clip(n_objects, MIN_OBJECTS,
+                                                                 MAX_OBJECTS))
+    scene = Scene(_named_objects(TYPE_ORDER[:n]), Robot())
+    columns = _place(scene, rng, grid, jitter)
+    _contain(scene, rng, p_contain)
+    _stack(scene, rng, p_stack)
+    for obj in scene.objects:
+        obj.open = obj.type == "drawer" and bool(rng.random() < 0.5)
+        obj.full = obj.type == "cup" and bool(rng.random() < 0.5)
+    _robot(scene, rng, grid, p_hold)
+    for obj in scene.objects:  # table objects rest on the table at their column
+        if obj.on is None and obj.inside is None and not scene.is_held(obj.name):
+            x, y = columns[obj.name]
+            obj.position = (x, y, obj.size / 2)
+    scene.settle()
+    return scene
+
+
+def _named_objects(types: tuple[str, ...]) -> list[SceneObject]:
+    counts: dict[str, int] = {}
+    out = []
+    for kind in types:
+        counts[kind] = counts.get(kind, 0) + 1
+        out.append(SceneObject(f"{kind}{counts[kind]}", kind, (0.0, 0.0, 0.0),
+                               DEFAULT_SIZES[kind]))
+    return out
+
+
+def _place(scene: Scene, rng: np.random.Generator, grid: Grid,
+           jitter: float) -> dict[str, tuple[float, float]]:
+    """Puts every object on a column or a tower; returns each table object's (x, y)."""
+    towers: dict[Column, list[str]] = {}
+    reserved: set[Column] = set()
+    xy: dict[str, tuple[float, float]] = {}
+    back = grid.shape[0] - 1
+    ordered = sorted(scene.objects, key=lambda o: PLACEMENT_ORDER.index(o.type))
+    for obj in ordered:
+        if obj.type == "drawer":
+            free = [(back, j) for j in range(grid.shape[1]) if (back, j) not in towers]
+            column = free[rng.integers(len(free))]
+            reserved.add((back - 1, column[1]))
+        else:
+            column = _column_for(scene, towers, reserved, rng, grid)
+        tower = towers.setdefault(column, [])
+        if tower:
+            obj.on = tower[-1]
+        else:
+            x, y = grid.column_xy(column)
+            xy[obj.name] = (x + rng.uniform(-jitter, jitter), y + rng.uniform(-jitter, jitter))
+        tower.append(obj.name)
+    return xy
+
+
+def _column_for(scene: Scene, towers: dict[Column, list[str]], reserved: set[Column],
+                rng: np.random.Generator, grid: Grid) -> Column:
+    columns = list(grid.columns())
+    while True:  # 16 columns for at most 7 objects: an empty one is always found
+        column = columns[rng.integers(len(columns))]
+        if column in reserved:
+            continue
+        tower = towers.get(column)
+        if not tower:
+            return column
+        if scene.get(tower[-1]).type in SUPPORTS and len(tower) < MAX_STACK:
+            return column
+
+
+def _free_graspable(scene: Scene) -> list[str]:
+    return [o.name for o in scene.objects if o.type in GRASPABLE and scene.is_free(o.name)]
+
+
+def _contain(scene: Scene, rng: np.random.Generator, p_contain: float) -> None:
+    drawers = [o.name for o in scene.objects if o.type == "drawer"]
+    for drawer in rng.permutation(drawers) if drawers else []:
+        free = _free_graspable(scene)
+        if not free or rng.random() >= p_contain or len(scene.contents(drawer)) >= DRAWER_CAPACITY:
+            continue
+        obj = scene.get(free[rng.integers(len(free))])
+        obj.on, obj.inside = None, str(drawer)
+
+
+def _stack(scene: Scene, rng: np.random.Generator, p_stack: float) -> None:
+    graspable = [o.name for o in scene.objects if o.type in GRASPABLE]
+    for name in rng.permutation(graspable) if graspable else []:
+        if not scene.is_free(name) or rng.random() >= p_stack:
+            continue
+        supports = [s.name for s in scene.objects
+                    if s.type in SUPPORTS and s.name != name and scene.is_free(s.name)
+                    and scene.stack_level(s.name) + 2 <= MAX_STACK]
+        if supports:
+            scene.get(name).on = supports[rng.integers(len(supports))]
+
+
+def _robot(scene: Scene, rng: np.random.Generator, grid: Grid, p_hold: float) -> None:
+    free = _free_graspable(scene)
+    nx, ny, nz = grid.shape
+    if free and rng.random() < p_hold:
+        held = scene.get(free[rng.integers(len(free))])
+        held.on = None
+        cell = (int(rng.integers(nx)), int(rng.integers(ny)), int(rng.integers(1, nz)))
+        scene.robot = Robot(grid.position(cell), gripper_open=False, holding=held.name)
+    else:
+        cell = (int(rng.integers(nx)), int(rng.integers(ny)), int(rng.integers(nz)))
+        scene.robot = Robot(grid.position(cell), gripper_open=True, holding=None)
