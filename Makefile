@@ -14,7 +14,13 @@ $(STAMP): pyproject.toml setup.py
 	python3 -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet $(TORCH)
+# fastdtw compiles its C extension only with Cython and numpy present and no build isolation;
+# otherwise it silently installs as pure Python (about 40x slower).
+	$(PY) -m pip install --quiet numpy cython setuptools wheel
+	$(PY) -m pip install --quiet --no-build-isolation --no-cache-dir fastdtw
 	$(PY) -m pip install --quiet -e '.[test]'
+# mujoco 4.0.0 pins mujoco-core 4.0.0, whose constraint solver has a bug that 4.0.1 fixes.
+	$(PY) -m pip install --quiet --no-deps 'mujoco-core==4.0.1'
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -20,7 +20,8 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -59,8 +60,20 @@ class BayesLinear(nn.Module):
     def _sigma(rho: torch.Tensor) -> torch.Tensor:
         return nn.functional.softplus(rho)
 
-    def forward(self, x: torch.Tensor, sample: bool = True) -> torch.Tensor:
-        """Returns pre-activations; sampled (local reparameterisation) or at the mean."""
+    def forward(self, x: torch.Tensor, sample: bool = True, shared: bool = False) -> torch.Tensor:
+        """Returns pre-activations: sampled, or at the posterior mean (``sample=False``).
+
+        By default each row gets its own sample of the pre-activations (local
+        reparameterisation: lowest variance, rows independent). ``shared=True`` draws one weight
+        sample for the whole call instead, so that rows that must see the same network (the
+        objects of one scene scored against each other) do.
+        """
+        if sample and shared:
+            w = self.w_mu + self._sigma(self.w_rho) * torch.randn_like(self.w_mu)
+            out = x @ w.T
+            if self.b_mu is not None:
+                out = out + self.b_mu + self._sigma(self.b_rho) * torch.randn_like(self.b_mu)
+            return out
         mean = x @ self.w_mu.T
         if self.b_mu is not None:
             mean = mean + self.b_mu
@@ -116,11 +129,15 @@ class BayesMLP(nn.Module):
                                     for a, b in zip(sizes[:-1], sizes[1:], strict=True))
         self.act = ACTIVATIONS[arch.activation]()
 
-    def forward(self, x: torch.Tensor, sample: bool = True) -> torch.Tensor:
-        """Returns logits for a batch (one posterior sample per example when sampling)."""
+    def forward(self, x: torch.Tensor, sample: bool = True, shared: bool = False) -> torch.Tensor:
+        """Returns logits for a batch of any leading shape.
+
+        Sampling draws one posterior sample per example, or one for the whole call with
+        ``shared=True`` (see `BayesLinear.forward`).
+        """
         for layer in self.layers[:-1]:
-            x = self.act(layer(x, sample))
-        return self.layers[-1](x, sample)
+            x = self.act(layer(x, sample, shared))
+        return self.layers[-1](x, sample, shared)
 
     def kl(self) -> torch.Tensor:
         """Returns KL(q || prior) of the whole network."""
@@ -136,6 +153,8 @@ class TrainConfig:
     lr: float = 0.01
     seed: int = 0
     kl_scale: float = 1.0  # 1.0 is the true ELBO; < 1 tempers the prior (recorded in metadata)
+    time_limit_s: float | None = None  # stop after the epoch that crosses this budget
+    lr_final: float | None = None  # cosine decay from lr to this by the last epoch (None: constant)
 
 
 def train(model: BayesMLP, x: np.ndarray, y: np.ndarray, config: TrainConfig,
@@ -150,30 +169,60 @@ def train(model: BayesMLP, x: np.ndarray, y: np.ndarray, config: TrainConfig,
         progress: show a tqdm bar (True, or a description string).
         weights: optional per-example weights of the likelihood (mean 1).
     """
-    torch.manual_seed(config.seed)
-    rng = np.random.default_rng(config.seed)
     xt = torch.as_tensor(x, dtype=torch.float32)
     yt = torch.as_tensor(y, dtype=torch.long)
-    wt = torch.as_tensor(weights if weights is not None else np.ones(len(y)), dtype=torch.float32)
-    n = len(yt)
-    optimiser = torch.optim.Adam(model.parameters(), lr=config.lr)
-    history = []
+    return fit(model, len(yt),
+               lambda batch: nn.functional.cross_entropy(model(xt[batch]), yt[batch],
+                                                         reduction="none"),
+               config, progress, weights)
+
+
+def fit(module: nn.Module, n: int, batch_nll: Callable[[torch.Tensor], torch.Tensor],
+        config: TrainConfig, progress: bool | str = False,
+        weights: np.ndarray | None = None) -> list[float]:
+    """Maximises the ELBO of any module made of Bayesian layers; returns −ELBO per example.
+
+    The likelihood is whatever `batch_nll` computes, so structured models (several networks
+    combined in one forward pass) train exactly like `BayesMLP`.
+
+    Args:
+        module: has parameters and ``kl()`` (the KL of its whole posterior to its prior).
+        n: the number of training examples.
+        batch_nll: given example indices (a LongTensor), returns their negative
+            log-likelihoods under one posterior sample, shape (len(indices),).
+        config: epochs, batch size, learning rate (and its decay), seed, KL scale, time limit.
+        progress: show a tqdm bar (True, or a description string).
+        weights: optional per-example weights of the likelihood (mean 1).
+    """
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    wt = torch.as_tensor(weights if weights is not None else np.ones(n), dtype=torch.float32)
+    optimiser = torch.optim.Adam(module.parameters(), lr=config.lr)
+    schedule = None if config.lr_final is None else torch.optim.lr_scheduler.CosineAnnealingLR(
+        optimiser, T_max=max(1, config.epochs), eta_min=config.lr_final)
+    history: list[float] = []
+    started = time.monotonic()
     bar = tqdm(range(config.epochs), desc=progress if isinstance(progress, str) else "training",
                disable=not progress, leave=False)
+    module.train()
     for _ in bar:
         order = torch.as_tensor(rng.permutation(n))
         total = 0.0
         for start in range(0, n, config.batch_size):
             batch = order[start:start + config.batch_size]
-            nll = nn.functional.cross_entropy(model(xt[batch]), yt[batch], reduction="none")
             # ELBO per example: the likelihood of the batch scaled to the data set, the KL once.
-            loss = (nll * wt[batch]).mean() + config.kl_scale * model.kl() / n
+            loss = (batch_nll(batch) * wt[batch]).mean() + config.kl_scale * module.kl() / n
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
             total += loss.item() * len(batch)
         history.append(total / n)
+        if schedule is not None:
+            schedule.step()
         bar.set_postfix(neg_elbo=f"{history[-1]:.4f}")
+        if config.time_limit_s is not None and time.monotonic() - started > config.time_limit_s:
+            break
+    module.eval()
     return history
 
 
@@ -230,8 +279,11 @@ class ModelFile:
         return Standardizer(**s) if s else None
 
 
-def save(path: str | Path, model: BayesMLP, metadata: dict[str, Any]) -> tuple[Path, Path]:
+def save(path: str | Path, model: nn.Module, metadata: dict[str, Any]) -> tuple[Path, Path]:
     """Writes ``<path>.pt`` (state_dict) and ``<path>.json`` (architecture + metadata).
+
+    Any module with a dataclass ``arch`` can be saved (a `BayesMLP`, or a model built of
+    several); `load_module` reads it back.
 
     Returns:
         The two paths written.
@@ -256,10 +308,28 @@ def _plain(value: Any) -> Any:
 
 
 def load(path: str | Path) -> ModelFile:
-    """Reads a model saved by `save` (``path`` with or without suffix).
+    """Reads a `BayesMLP` saved by `save` (``path`` with or without suffix).
 
     Raises:
         ConfigError: missing files, another format, or weights that do not fit the architecture.
+    """
+    model, meta = load_module(path, lambda m: BayesMLP(Architecture(**m["architecture"])))
+    return ModelFile(model, meta)
+
+
+def load_module(path: str | Path, build: Callable[[dict[str, Any]], nn.Module]
+                ) -> tuple[nn.Module, dict[str, Any]]:
+    """Reads any module saved by `save`: `build` makes it from the metadata, then weights load.
+
+    Args:
+        path: ``<base>``, ``<base>.pt`` or ``<base>.json``.
+        build: returns an untrained module from the metadata (its ``architecture`` entry).
+
+    Returns:
+        The module (in eval mode) and its metadata.
+
+    Raises:
+        ConfigError: missing files, another format, or weights that do not fit.
     """
     base = Path(path).with_suffix("")
     pt, js = base.with_suffix(".pt"), base.with_suffix(".json")
@@ -270,13 +340,13 @@ def load(path: str | Path) -> ModelFile:
         raise ConfigError(f"cannot load model {base}: {e}") from None
     if meta.get("format") != FORMAT:
         raise ConfigError(f"{js} is not a {FORMAT} model (format {meta.get('format')!r})")
-    model = BayesMLP(Architecture(**meta["architecture"]))
     try:
+        model = build(meta)
         model.load_state_dict(state)
-    except RuntimeError as e:
+    except (RuntimeError, TypeError, KeyError) as e:
         raise ConfigError(f"{pt} does not fit the architecture in {js}: {e}") from None
     model.eval()
-    return ModelFile(model, meta)
+    return model, meta
 
 
 def layer_sizes(arch: Architecture) -> Sequence[int]:

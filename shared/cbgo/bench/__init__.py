@@ -7,10 +7,14 @@ when run).
 
 # name -> (module, one-line summary)
 BENCHES = {
+    "static": ("cbgo.services.static_gesture.bench", "static gestures: accuracy, ECE, latency"),
+    "intent": ("cbgo.services.intent.bench", "paper's M1-M5 vs ours on D1-D5, learning curve"),
+    "dynamic": ("cbgo.services.dynamic_gesture.bench", "dynamic gestures: accuracy, ECE, latency"),
     "wire": ("cbgo.bench.wire",
              "encode/decode/validate cost per message and latency through a real router"),
     "hands": ("cbgo.bench.hands", "realism of the simulated hand against real Leap recordings"),
     "bridge": ("cbgo.bench.bridge", "leap-bridge frame stream: rate and jitter at 30/60/120 Hz"),
+    "sim": ("cbgo.services.mujoco_sim.bench", "mujoco-sim: success and speed of every action"),
     "episode": ("cbgo.services.episode.bench",
                 "episode end condition -> summary latency through real processes"),
 }

@@ -5,4 +5,8 @@ finds it (imported only when run).
 """
 
 # name -> (module, one-line summary)
-TRAINERS: dict[str, tuple[str, str]] = {}
+TRAINERS: dict[str, tuple[str, str]] = {
+    "static": ("cbgo.services.static_gesture.train", "static-gesture Bayesian MLP"),
+    "intent": ("cbgo.services.intent.train", "intent model (order-invariant Bayesian) on D4"),
+    "dynamic": ("cbgo.services.dynamic_gesture.train", "dynamic-gesture templates + calibration"),
+}

@@ -9,8 +9,17 @@
 Pure Python and NumPy: no Zenoh, no torch.
 """
 
-from cbgo.world.actions import (MOVES, OBJECT_AGNOSTIC, Failure, InfeasibleAction, apply,
-                                candidates, check, failures, feasible)
+from cbgo.world.actions import (
+    MOVES,
+    OBJECT_AGNOSTIC,
+    Failure,
+    InfeasibleAction,
+    apply,
+    candidates,
+    check,
+    failures,
+    feasible,
+)
 from cbgo.world.generate import random_scene
 from cbgo.world.grid import DEFAULT_GRID, Grid
 from cbgo.world.scene import Robot, Scene, SceneObject

@@ -22,8 +22,16 @@ from __future__ import annotations
 import numpy as np
 
 from cbgo.world.grid import DEFAULT_GRID, Column, Grid
-from cbgo.world.scene import (DEFAULT_SIZES, DRAWER_CAPACITY, GRASPABLE, MAX_STACK, SUPPORTS,
-                              Robot, Scene, SceneObject)
+from cbgo.world.scene import (
+    DEFAULT_SIZES,
+    DRAWER_CAPACITY,
+    GRASPABLE,
+    MAX_STACK,
+    SUPPORTS,
+    Robot,
+    Scene,
+    SceneObject,
+)
 
 TYPE_ORDER = ("cup", "drawer", "box", "cup", "drawer", "box", "cup")
 PLACEMENT_ORDER = ("drawer", "box", "cup")

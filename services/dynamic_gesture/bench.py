@@ -1,0 +1,273 @@
+"""Benchmark dynamic gestures: accuracy on held-out users, calibration, cost, latency.
+
+1. **Accuracy.** Simulated users the templates never saw (other seeds) and whose styles lie
+   outside the training range on every axis (`simdata.HELD_OUT`: slower and faster, smaller
+   and larger strokes, more curvature, more tremor, other hand sizes, other roll angles) perform
+   every gesture ``--reps`` times among static poses; their frames go through the service's
+   segmenter and classifier. Each end-of-stroke window is one sample (truth: the gesture most of
+   its frames perform, else ``none``); a true stroke that no end-of-stroke window caught counts
+   as predicted ``none``. Printed: the confusion matrix (rows true), per-class recall, balanced
+   accuracy, ECE, and the same for the windows evaluated mid-stroke. ``still`` sessions (a hand
+   held still for seconds) add the false strokes of a resting hand to the ``none`` row.
+2. **Cost.** Time per classification against the whole library (median, p99) on those
+   windows, and DTW implementations compared on the same windows: vectorised numpy exact DTW,
+   plain-Python exact DTW, fastdtw's exact ``dtw`` and its approximate ``fastdtw`` (radius 1)
+   with ``dist=2`` as installed — compiled when its extension was built, else pure Python —
+   and ``fastdtw`` with a Python callable as ``dist``; the approximation's error; and the
+   classifier's accuracy on fastdtw's approximate distances.
+3. **Latency.** A router, a leap-bridge (simulated user) and dynamic-gesture as real processes;
+   the leap-bridge plays ``dynamic-all``; for each stroke's final window, the time from the
+   stroke's end (``window[1]``, the frame where the hand slowed down) to the service's publish
+   (``ts``) and to arrival at a subscriber. It includes the ``end_hold_s`` the segmenter waits
+   to be sure the hand stopped.
+
+Examples::
+
+    cbgo bench dynamic
+    cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
+    cbgo bench dynamic --ranges train          # held-out users inside the training range
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cbgo import keys, metrics, wire
+from cbgo.services.dynamic_gesture import simdata
+from cbgo.services.dynamic_gesture.classifier import NONE, Classifier, normalised
+from cbgo.services.dynamic_gesture.dtw import dtw_naive, fastdtw_backend
+from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library
+from cbgo.services.dynamic_gesture.stroke import Segmenter
+from cbgo.simuser.scenario import load_scenario
+from cbgo.simuser.user import SimulatedUser
+
+BENCH_SEED = 50_000
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds the benchmark's flags."""
+    parser.add_argument("--users", type=int, default=16, help="held-out users [16]")
+    parser.add_argument("--reps", type=int, default=2, help="strokes per gesture and user [2]")
+    parser.add_argument("--ranges", choices=sorted(simdata.RANGES), default="held-out",
+                        help="style ranges of the users [held-out]")
+    parser.add_argument("--seed", type=int, default=BENCH_SEED, help=f"[{BENCH_SEED}]")
+    parser.add_argument("--still", type=int, default=4, help="still-hand sessions [4]")
+    parser.add_argument("--jobs", type=int, default=2, help="processes simulating users [2]")
+    parser.add_argument("--templates", type=Path, default=DEFAULT_PATH,
+                        help="template library [the shipped models/default.json]")
+    parser.add_argument("--latency", action=argparse.BooleanOptionalAction, default=True,
+                        help="measure latency through real processes [on]")
+    parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
+
+
+# ============================================================================ accuracy
+
+
+def still_windows(sessions: int, seed: int) -> list[simdata.Labelled]:
+    """Returns the windows a resting hand produced (every one is truly none)."""
+    out = []
+    for i in range(sessions):
+        scenario = load_scenario("still")
+        scenario.seed = seed + i
+        style = next(iter(scenario.users.values()))
+        style.tremor_mm = 1.0 + i * 0.5  # 1 to 2.5 mm: up to a shaky hand
+        segmenter = Segmenter()
+        for frame in SimulatedUser(scenario, 60.0).frames():
+            out += [simdata.Labelled(w, NONE) for w in segmenter.update(frame.t, frame.hands)]
+    return out
+
+
+def score(classifier: Classifier, users: list[simdata.UserData],
+          extra: list[simdata.Labelled]) -> dict:
+    """Returns accuracy and calibration figures of final and mid-stroke windows."""
+    index = {name: i for i, name in enumerate(classifier.names)}
+    rows: dict[bool, tuple[list, list]] = {True: ([], []), False: ([], [])}
+    windows = [lw for u in users for lw in u.windows] + extra
+    for lw in windows:
+        probs, truths = rows[lw.window.final]
+        probs.append(classifier.classify(lw.window))
+        truths.append(index.get(lw.truth, index[NONE]))
+    missed = [g for u in users for g, _, _ in u.missed]
+    n = len(classifier.names)
+    out = {}
+    for final, (probs, truths) in rows.items():
+        p = np.asarray(probs).reshape(-1, n)
+        y = np.asarray(truths, dtype=int)
+        pred = p.argmax(1) if len(p) else np.zeros(0, dtype=int)
+        if final:  # a stroke nobody caught is a gesture predicted as none
+            y = np.concatenate([y, [index[g] for g in missed]]).astype(int)
+            pred = np.concatenate([pred, [index[NONE]] * len(missed)]).astype(int)
+        confusion = metrics.confusion_matrix(y, pred, n)
+        out["final" if final else "mid_stroke"] = {
+            "samples": len(y), "balanced_accuracy": metrics.balanced_accuracy(y, pred, n),
+            "recall": dict(zip(classifier.names, np.nan_to_num(
+                metrics.per_class_recall(confusion)).tolist(), strict=True)),
+            "ece": metrics.expected_calibration_error(p, y[:len(p)]) if len(p) else 0.0,
+            "confusion": confusion.tolist()}
+    out["final"]["missed_strokes"] = len(missed)
+    out["final"]["true_strokes"] = sum(len(u.strokes) for u in users)
+    out["still_false_strokes"] = sum(
+        1 for lw in extra if lw.window.final
+        and classifier.names[int(classifier.classify(lw.window).argmax())] != NONE)
+    out["still_windows"] = len(extra)
+    return out
+
+
+# ============================================================================ cost
+
+
+def _timed(fn, reps: int = 1) -> float:
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        fn()
+    return (time.perf_counter() - t0) / reps * 1e3
+
+
+def cost(classifier: Classifier, windows: list, limit: int = 120) -> dict:
+    """Returns ms per classification and the DTW implementations compared on real windows."""
+    per = np.array([_timed(lambda w=w: classifier.classify(w)) for w in windows])
+    lengths = np.array([len(w.obs) for w in windows])
+    shapes = classifier.shapes
+    obs = [normalised(w.obs) for w in windows[:limit]]
+    out = {"classify_ms_median": float(np.median(per)),
+           "classify_ms_p99": float(np.percentile(per, 99)),
+           "stroke_samples": [int(lengths.min()), int(np.median(lengths)), int(lengths.max())],
+           "template_samples": [len(t) for t in shapes], "templates": len(shapes),
+           "dtw": classifier.implementation, "fastdtw": fastdtw_backend()}
+    runs = {"exact, numpy (TemplateBank)": (lambda o: classifier.bank.distances(o), obs),
+            "exact, plain Python": (lambda o: [dtw_naive(o, t) for t in shapes], obs[:30])}
+    if out["fastdtw"] is not None:
+        from fastdtw import dtw, fastdtw
+
+        def euclid(a, b):
+            return float(np.linalg.norm(a - b))
+
+        kind = out["fastdtw"]
+        runs[f"exact, fastdtw dtw dist=2 ({kind})"] = (
+            lambda o: [dtw(o, t, dist=2) for t in shapes], obs)
+        runs[f"approx., fastdtw r=1 dist=2 ({kind})"] = (
+            lambda o: [fastdtw(o, t, radius=1, dist=2) for t in shapes], obs)
+        runs[f"approx., fastdtw r=1 dist=callable ({kind})"] = (
+            lambda o: [fastdtw(o, t, radius=1, dist=euclid) for t in shapes], obs[:20])
+        exact = np.array([classifier.bank.costs(o) for o in obs])
+        approx = np.array([[fastdtw(o, t, radius=1, dist=2)[0] for t in shapes] for o in obs])
+        out["fastdtw_error_median"] = float(np.median(approx / exact - 1))
+        out["fastdtw_error_max"] = float(np.max(approx / exact - 1))
+    out["dtw_ms_per_library"] = {
+        name: float(np.median([_timed(lambda o=o, fn=fn: fn(o)) for o in items]))
+        for name, (fn, items) in runs.items()}
+    return out
+
+
+# ============================================================================ latency
+
+
+def latency(seconds_limit: float = 90.0) -> dict:
+    """Plays dynamic-all through real processes; returns the end-of-stroke latencies."""
+    from cbgo.testing import Stack
+
+    expected = [step.gesture for e in load_scenario("dynamic-all").episodes
+                for step in e.gestures]
+    got: list[tuple[float, dict]] = []
+    lock = threading.Lock()
+
+    def on_sample(sample) -> None:
+        arrival = time.time()
+        with lock:
+            got.append((arrival, wire.decode(sample.payload.to_bytes())))
+
+    with tempfile.TemporaryDirectory() as tmp, Stack(Path(tmp)) as stack:
+        stack.start_router()
+        stack.start_service("leap-bridge")
+        stack.start_service("dynamic-gesture", env={"CBGO_DATA_DIR": tmp})
+        stack.wait_alive(["router", "leap-bridge", "dynamic-gesture"], timeout=60)
+        stack.session().declare_subscriber(stack.keys.of(keys.GESTURES_DYNAMIC), on_sample)
+        time.sleep(0.5)
+        (ok, reply), = stack.query(stack.keys.ctl("leap-bridge", "play"),
+                                   {"scenario": "dynamic-all"})
+        if not ok:
+            raise RuntimeError(f"leap-bridge refused to play: {reply}")
+        time.sleep(min(seconds_limit, reply["duration_s"] + 1.5))
+    finals: dict[float, tuple[float, dict]] = {}
+    for arrival, msg in got:  # the last window of each stroke is its final one
+        finals[msg["window"][0]] = (arrival, msg)
+    publish = [msg["ts"] - msg["window"][1] for _, msg in finals.values()]
+    arrive = [a - msg["window"][1] for a, msg in finals.values()]
+    winners = [msg["names"][int(np.argmax(msg["probs"]))] for _, msg in finals.values()]
+    gestures = [w for w in winners if w != NONE]
+    return {"strokes": len(finals), "winners": winners, "expected": expected,
+            "correct": gestures == expected,
+            "end_to_publish_ms": _stats(publish), "end_to_arrival_ms": _stats(arrive)}
+
+
+def _stats(values: list[float]) -> dict:
+    if not values:
+        return {}
+    v = np.asarray(values) * 1e3
+    return {"median": float(np.median(v)), "p99": float(np.percentile(v, 99)),
+            "max": float(v.max())}
+
+
+# ============================================================================ run
+
+
+def _print_block(title: str, block: dict, names: list[str]) -> None:
+    print(f"\n{title}: {block['samples']} windows")
+    print(metrics.format_confusion(np.asarray(block["confusion"]), names))
+    print("recall: " + ", ".join(f"{k} {v:.1%}" for k, v in block["recall"].items()))
+    print(f"balanced accuracy {block['balanced_accuracy']:.2%}, ECE {block['ece']:.3f}")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runs the three parts and prints their figures."""
+    library = Library(args.templates, None).load()
+    classifier = library.classifier()
+    t0 = time.perf_counter()
+    users = simdata.generate(list(range(args.seed, args.seed + args.users)),
+                             simdata.RANGES[args.ranges], args.reps, args.jobs)
+    extra = still_windows(args.still, args.seed + 10_000)
+    print(f"simulated {args.users} {args.ranges} users and {args.still} still hands in "
+          f"{time.perf_counter() - t0:.0f} s; templates: {', '.join(library.names)}")
+    figures = {"users": args.users, "ranges": args.ranges, "reps": args.reps,
+               "accuracy": score(classifier, users, extra)}
+    acc = figures["accuracy"]
+    _print_block("end-of-stroke windows (missed strokes count as none)", acc["final"],
+                 classifier.names)
+    print(f"true strokes {acc['final']['true_strokes']}, missed {acc['final']['missed_strokes']}"
+          f"; still hands: {acc['still_windows']} windows, {acc['still_false_strokes']} "
+          "final ones won by a gesture")
+    _print_block("mid-stroke windows", acc["mid_stroke"], classifier.names)
+    finals = [lw.window for u in users for lw in u.windows if lw.window.final]
+    figures["cost"] = cost(classifier, finals)
+    c = figures["cost"]
+    print(f"\nclassification against {c['templates']} templates (DTW: {c['dtw']}): median "
+          f"{c['classify_ms_median']:.3f} ms, p99 {c['classify_ms_p99']:.3f} ms; stroke "
+          f"samples min/median/max {c['stroke_samples']}, templates {c['template_samples']}")
+    for name, ms in c["dtw_ms_per_library"].items():
+        print(f"  DTW against the library, {name}: {ms:.3f} ms (median)")
+    if c["fastdtw"] is not None:
+        fast = Classifier(classifier.templates, classifier.calibration, dtw="fastdtw")
+        fast_acc = score(fast, users, [])["final"]["balanced_accuracy"]
+        c["fastdtw_balanced_accuracy"] = fast_acc
+        print(f"  fastdtw cost error vs exact: median {c['fastdtw_error_median']:.2%}, max "
+              f"{c['fastdtw_error_max']:.2%}; balanced accuracy with fastdtw {fast_acc:.2%}")
+    if args.latency:
+        figures["latency"] = lat = latency()
+        print(f"\nlatency through router + leap-bridge + dynamic-gesture ({lat['strokes']} "
+              f"strokes, gestures in order: {lat['correct']}; winners {lat['winners']}):")
+        for name in ("end_to_publish_ms", "end_to_arrival_ms"):
+            s = lat[name]
+            if s:
+                print(f"  {name}: median {s['median']:.1f}, p99 {s['p99']:.1f}, "
+                      f"max {s['max']:.1f}")
+    if args.json:
+        args.json.write_text(json.dumps(figures, indent=2, default=float))
+        print(f"\nwrote {args.json}")
+    return 0

@@ -1,0 +1,176 @@
+"""dynamic-gesture: strokes cut out of hand frames, classified against ProMP templates by DTW.
+
+Behaviour (the contract is services/dynamic_gesture/README.md):
+- every ``cbgo/hands/frame`` goes through the `stroke.Segmenter` (per hand id, on the frames'
+  own ``ts`` clock): a stroke starts from rest in the centre of the sensor field and ends when
+  the hand slows down; preparation and retraction moves are no strokes;
+- each evaluated window (every ``eval_period_s`` while a stroke runs, and at its end) is
+  classified against the whole template library (`classifier.Classifier`) and published on
+  ``cbgo/gestures/dynamic``: ``names`` are the templates plus ``none``, ``probs`` sum to 1,
+  ``window`` is ``[t_start, t_end]`` in the frames' clock, ``seq`` counts publications;
+- templates are the shipped defaults plus the user's (``<data dir>/gestures/dynamic/*.json``,
+  taught with ``cbgo gestures record NAME --dynamic``); the control verb
+  ``@ctl/dynamic-gesture/reload`` reloads them at once, and the user folder is polled every
+  ``poll_s`` for changes.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cbgo import keys, wire
+from cbgo.config import data_dir
+from cbgo.errors import ConfigError, QueryError
+from cbgo.runtime import Service, main_for
+from cbgo.services.dynamic_gesture.classifier import DTW_MODES
+from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, read_default, user_dir
+from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig, Window
+
+MODEL = "promp-dtw-1"
+
+
+def _help(text: str) -> dict:
+    return {"help": text}
+
+
+@dataclass
+class DynamicGestureSettings(SegmenterConfig):
+    """Settings of dynamic-gesture: the segmenter's (see `stroke.SegmenterConfig`) and these."""
+
+    templates: str | None = field(default=None, metadata=_help(
+        "the default template library (JSON) [default: the shipped models/default.json]"))
+    user_dir: str | None = field(default=None, metadata=_help(
+        "folder of user-taught gestures [default: <data dir>/gestures/dynamic, data dir from "
+        "CBGO_DATA_DIR or ~/.local/share/cbgo]"))
+    poll_s: float = field(default=2.0, metadata=_help(
+        "how often to look for new or changed user gestures, s (0: only on reload)"))
+    dtw: str = field(default="exact", metadata=_help(
+        "exact (fastdtw's compiled exact DTW, else vectorised numpy), numpy (always the "
+        "numpy one) or fastdtw (approximate, radius 1)"))
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.dtw not in DTW_MODES:
+            raise ConfigError(f"dtw {self.dtw!r} is not one of {', '.join(DTW_MODES)}")
+        if self.poll_s < 0:
+            raise ConfigError(f"poll_s={self.poll_s} must not be negative (0 disables)")
+
+    def segmenter(self) -> SegmenterConfig:
+        """Returns the segmenter part of the settings."""
+        names = SegmenterConfig.__dataclass_fields__
+        return SegmenterConfig(**{name: getattr(self, name) for name in names})
+
+
+class DynamicGesture(Service):
+    """Segments strokes and publishes dynamic-gesture probabilities per evaluated window."""
+
+    name = "dynamic-gesture"
+    description = ("Cuts strokes out of cbgo/hands/frame and publishes cbgo/gestures/dynamic: "
+                   "ProMP templates compared by dynamic time warping, calibrated probabilities.")
+    settings_class = DynamicGestureSettings
+
+    def __init__(self, settings: DynamicGestureSettings):
+        super().__init__(settings)
+        self.segmenter = Segmenter(settings.segmenter())
+        self.library = Library(Path(settings.templates or DEFAULT_PATH),
+                               Path(settings.user_dir) if settings.user_dir
+                               else user_dir(data_dir()))
+        self.classifier = None
+        self.seq = 0
+        self.windows = 0
+        self.reloads = 0
+        self.classify_ms: deque[float] = deque(maxlen=1000)
+
+    def setup(self, ctx) -> None:
+        """Loads the templates, subscribes to hand frames, declares reload and polling.
+
+        Called once, before the liveliness token is declared.
+
+        Raises:
+            ConfigError: the default library is missing or malformed, or was learned with
+                another roll scale than the one configured.
+        """
+        self.ctx = ctx
+        _, _, data = read_default(self.library.default_path)
+        scale = float(data.get("observation", {}).get("roll_scale_mm_per_rad", 0.0))
+        if scale and abs(scale - self.settings.roll_scale_mm_per_rad) > 1e-9:
+            raise ConfigError(f"roll_scale_mm_per_rad={self.settings.roll_scale_mm_per_rad} "
+                              f"differs from the {scale} the templates were learned with")
+        self._load()
+        ctx.subscribe(keys.HANDS_FRAME, self.on_frame)
+        ctx.publishes(keys.GESTURES_DYNAMIC)
+        ctx.control("reload", self.on_reload)
+        if self.settings.poll_s > 0:
+            ctx.every(self.settings.poll_s, self.poll)
+
+    def _load(self) -> None:
+        self.library.load()
+        self.classifier = self.library.classifier(self.settings.dtw)
+        for name, reason in self.library.skipped.items():
+            self.ctx.log.warning("skipped user gesture file %s: %s", name, reason)
+        self.ctx.log.info("templates: %s", ", ".join(
+            f"{t.name} ({t.source})" for t in self.library.templates))
+
+    def on_frame(self, msg: dict) -> list:
+        """Feeds one hand frame to the segmenter; returns a message per window to evaluate."""
+        return [(keys.GESTURES_DYNAMIC, self.message(w))
+                for w in self.segmenter.update(msg["ts"], msg["hands"])]
+
+    def message(self, window: Window) -> dict:
+        """Classifies one window and returns its ``cbgo/gestures/dynamic`` message."""
+        t0 = time.perf_counter()
+        probs = self.classifier.classify(window)
+        self.classify_ms.append((time.perf_counter() - t0) * 1e3)
+        self.windows += 1
+        msg = {"v": wire.SCHEMA_VERSION, "ts": time.time(), "seq": self.seq,
+               "hand_id": window.hand_id, "side": window.side,
+               "names": list(self.classifier.names), "probs": [float(p) for p in probs],
+               "window": [window.t_start, window.t_end], "model": MODEL}
+        self.seq += 1
+        return msg
+
+    def on_reload(self, _query: dict) -> dict:
+        """Control verb ``reload``: re-reads the default and user templates.
+
+        Raises:
+            QueryError: the default library cannot be read (the old one stays in use).
+        """
+        try:
+            self._load()
+        except ConfigError as e:
+            raise QueryError(str(e)) from None
+        self.reloads += 1
+        return {"v": wire.SCHEMA_VERSION, "ok": True, "gestures": self.library.names,
+                "skipped": self.library.skipped, "model": MODEL}
+
+    def poll(self) -> None:
+        """Timer: reloads when user gesture files were added, changed or removed."""
+        if self.library.changed():
+            self.ctx.log.info("user gestures changed; reloading")
+            try:
+                self._load()
+                self.reloads += 1
+            except ConfigError as e:
+                self.ctx.counters.error("reload", str(e))
+
+    def status_extra(self) -> dict:
+        """Adds the templates in use and the classification cost."""
+        ms = np.asarray(self.classify_ms) if self.classify_ms else np.zeros(1)
+        return {"gestures": [{"name": t.name, "source": t.source, "demos": t.n_demos}
+                             for t in self.library.templates],
+                "skipped": self.library.skipped, "strokes": self.segmenter.strokes,
+                "windows": self.windows, "reloads": self.reloads,
+                "dtw": self.classifier.implementation,
+                "classify_ms": {"p50": float(np.median(ms)),
+                                "p99": float(np.percentile(ms, 99))}}
+
+
+main = main_for(DynamicGesture)
+
+if __name__ == "__main__":
+    main()

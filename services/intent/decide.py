@@ -1,0 +1,204 @@
+"""From the posterior over (action, object) to one decision: the most probable FEASIBLE intent.
+
+Candidates are scored under the full joint p(action, object) — never argmax-then-fallback:
+
+- an action that needs an object (pick_up, put_on, put_into, pour, open, close) makes one
+  candidate per object o, scored p(action, o);
+- moves and place ignore the object: one candidate each, scored by the marginal
+  Σ_o p(action, o), with object None.
+
+Only candidates whose preconditions hold (`cbgo.world.actions`) compete; with
+``accept_repairable`` a candidate whose every unmet precondition one action repairs (a closed
+drawer is opened, a held object placed first — the planner's job) competes too. The best one's
+probability is the `confidence`. Then:
+
+- ``accepted``: the best feasible candidate reaches ``min_confidence``;
+- ``low_confidence``: it does not; no action is taken (action and object null);
+- ``infeasible``: no candidate is feasible, or the single most probable candidate is infeasible
+  and reaches ``min_confidence`` while no feasible one does (the person asked for something the
+  world does not allow); the reason names the unmet precondition.
+
+Intent params: pour gets ``angle_deg`` (the episode's, default 90); moves get ``distance`` when
+the episode measured one; other parameters are dropped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cbgo.errors import ConfigError
+from cbgo.wire import ACTIONS
+from cbgo.world import MOVES, OBJECT_AGNOSTIC, Scene, failures
+
+AGNOSTIC_INDEX = np.array([a in OBJECT_AGNOSTIC for a in ACTIONS])
+REPAIRABLE = frozenset({"drawer_closed", "holding"})
+
+
+@dataclass
+class DecisionConfig:
+    """Thresholds of the decision.
+
+    Attributes:
+        min_confidence: below this probability the best feasible intent is not acted on.
+        accept_repairable: let intents compete whose unmet preconditions the planner repairs.
+        pour_angle_deg: the pour angle when the episode gives none.
+    """
+
+    min_confidence: float = 0.5
+    accept_repairable: bool = False
+    pour_angle_deg: float = 90.0
+
+    def __post_init__(self):
+        if not 0.0 <= self.min_confidence <= 1.0:
+            raise ConfigError(f"min_confidence={self.min_confidence} must be within [0, 1]")
+
+
+@dataclass
+class Candidate:
+    """One (action, object) with its probability and unmet preconditions."""
+
+    action: str
+    object: str | None
+    p: float
+    problems: list[str] = field(default_factory=list)
+    repairable: bool = False
+
+    @property
+    def label(self) -> str:
+        """``action(object)`` or ``action``."""
+        return f"{self.action}({self.object})" if self.object else self.action
+
+
+@dataclass
+class Decision:
+    """The outcome: what to do (or why not) and the posteriors behind it."""
+
+    action: str | None
+    object: str | None
+    params: dict[str, Any]
+    confidence: float
+    status: str
+    reason: str
+    p_action: dict[str, float]
+    p_object: dict[str, float]
+
+
+def candidates(joint: np.ndarray, names: Sequence[str], scene: Scene,
+               params: Mapping[str, Any] | None = None) -> list[Candidate]:
+    """Returns every candidate with its probability, most probable first.
+
+    Args:
+        joint: (K, A) p(object, action) for the scene's K objects.
+        names: the objects' names, in the rows' order.
+        scene: the world the preconditions are checked in.
+        params: the intent's metric parameters (move distances).
+    """
+    out = []
+    for a, action in enumerate(ACTIONS):
+        targets = [(None, float(joint[:, a].sum()))] if action in OBJECT_AGNOSTIC else [
+            (name, float(joint[k, a])) for k, name in enumerate(names)]
+        for name, p in targets:
+            found = failures(action, name, scene, _action_params(action, params or {}, 90.0))
+            out.append(Candidate(action, name, p, [f.message for f in found],
+                                 bool(found) and all(f.code in REPAIRABLE for f in found)))
+    return sorted(out, key=lambda c: -c.p)
+
+
+def _action_params(action: str, params: Mapping[str, Any], pour_angle: float) -> dict[str, Any]:
+    if action == "pour":
+        angle = params.get("angle_deg")
+        return {"angle_deg": float(angle) if isinstance(angle, (int, float)) and not isinstance(
+            angle, bool) else pour_angle}
+    if action in MOVES and isinstance(params.get("distance"), (int, float)) and not isinstance(
+            params.get("distance"), bool):
+        return {"distance": float(params["distance"])}
+    return {}
+
+
+def decide(joint: np.ndarray, names: Sequence[str], scene: Scene,
+           config: DecisionConfig | None = None,
+           params: Mapping[str, Any] | None = None) -> Decision:
+    """Chooses the intent; see the module docstring for the rules.
+
+    Args:
+        joint: (K, A) p(object, action); rows follow `names`, columns `cbgo.wire.ACTIONS`.
+        names: object names.
+        scene: the world.
+        config: thresholds.
+        params: the episode's metric parameters.
+    """
+    config = config or DecisionConfig()
+    params = dict(params or {})
+    joint = np.clip(np.nan_to_num(np.asarray(joint, dtype=float)), 0.0, None)
+    joint = joint / joint.sum() if joint.sum() > 0 else joint
+    p_action = {a: _prob(joint[:, i].sum()) for i, a in enumerate(ACTIONS)}
+    p_object = {name: _prob(joint[k].sum()) for k, name in enumerate(names)}
+    ranked = candidates(joint, names, scene, params)
+    ok = [c for c in ranked if not c.problems or (config.accept_repairable and c.repairable)]
+    best = ok[0] if ok else None
+    top = ranked[0] if ranked else None
+
+    def result(status: str, reason: str, chosen: Candidate | None = None) -> Decision:
+        return Decision(chosen.action if chosen else None, chosen.object if chosen else None,
+                        _action_params(chosen.action, params, config.pour_angle_deg)
+                        if chosen else {}, _prob(best.p if best else 0.0), status, reason,
+                        p_action, p_object)
+
+    if best is None:
+        why = f"; most probable {top.label}: {top.problems[0]}" if top else ""
+        return result("infeasible", "no feasible intent in this scene" + why)
+    if best.p >= config.min_confidence:
+        note = "" if not best.problems else " (the planner repairs: " + "; ".join(
+            best.problems) + ")"
+        return result("accepted", f"{best.label} with p={best.p:.2f}{note}", best)
+    if top is not None and top.problems and top.p >= config.min_confidence:
+        return result("infeasible", f"most probable intent {top.label} (p={top.p:.2f}) is "
+                                    f"infeasible: {'; '.join(top.problems)}")
+    return result("low_confidence", f"best feasible intent {best.label} has p={best.p:.2f} < "
+                                    f"{config.min_confidence:g}")
+
+
+def _prob(p: float) -> float:
+    return float(min(1.0, max(0.0, p)))
+
+
+def decide_arrays(joint: np.ndarray, feasible: np.ndarray,
+                  mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The same choice for a batch, with feasibility given as arrays (for evaluation).
+
+    Args:
+        joint: (N, K, A) p(object, action).
+        feasible: (N, A, K) feasibility per action and slot.
+        mask: (N, K) slots that hold an object.
+
+    Returns:
+        action index (N,), object slot (N,; −1 for moves and place, and when nothing is
+        feasible), confidence (N,).
+    """
+    n, k, a = joint.shape
+    scores = np.where(np.transpose(feasible, (0, 2, 1)) & mask[..., None], joint, -1.0)
+    marginal = joint.sum(1)  # (N, A)
+    agnostic_ok = (feasible & mask[:, None, :]).any(2)
+    agnostic = np.where(agnostic_ok & AGNOSTIC_INDEX, marginal, -1.0)
+    scores[:, :, AGNOSTIC_INDEX] = -1.0
+    flat = scores.reshape(n, -1)
+    best_obj = flat.argmax(1)
+    best_obj_p = flat.max(1)
+    best_agn = agnostic.argmax(1)
+    best_agn_p = agnostic.max(1)
+    use_agn = best_agn_p >= best_obj_p
+    action = np.where(use_agn, best_agn, best_obj % a)
+    slot = np.where(use_agn, -1, best_obj // a)
+    confidence = np.maximum(best_agn_p, best_obj_p).clip(0.0, 1.0)
+    return action, slot, confidence
+
+
+def joint_correct(action: np.ndarray, slot: np.ndarray, true_action: np.ndarray,
+                  true_target: np.ndarray) -> np.ndarray:
+    """(N,) a decision is right: the action matches and, unless it ignores objects, the object."""
+    agnostic = AGNOSTIC_INDEX[true_action]
+    return (action == true_action) & (agnostic | (slot == true_target))

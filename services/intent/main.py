@@ -1,0 +1,176 @@
+"""intent: from the gesture vector and its context to the intended action, object and params.
+
+Behaviour (the contract is services/intent/README.md):
+- on each ``cbgo/episode/summary``, infers the intent from the summary's gesture vector, focus,
+  params and user with the latest ``cbgo/scene/state``, and publishes it on ``cbgo/intent``
+  (BLOCK: every summary gets exactly one intent, with a reason when nothing is to be done);
+- answers ``cbgo/intent/infer`` queries the same way, the context given in the query;
+  malformed queries are refused by the runtime, semantically bad ones with the reason;
+- ``cbgo/intent/feedback`` corrects an earlier intent (by episode, else the user's last): the
+  correction is stored and that user's model refitted (`personal`), which takes a second or
+  two on the event loop;
+- control verb ``@ctl/intent/last``: the last intent (optionally ``{user}``'s), its episode and
+  user — what ``cbgo feedback`` corrects by default.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from cbgo import keys, wire
+from cbgo.config import data_dir
+from cbgo.errors import ConfigError, QueryError
+from cbgo.runtime import Service, main_for
+from cbgo.services.intent.decide import DecisionConfig
+from cbgo.services.intent.engine import InputError, IntentEngine
+from cbgo.services.intent.models import OursModel
+from cbgo.services.intent.personal import PersonalStore
+
+
+def _help(text: str) -> dict:
+    return {"help": text}
+
+
+def default_model_path() -> Path:
+    """Returns the shipped default model (``services/intent/models/ours``)."""
+    return Path(str(resources.files("cbgo.services.intent").joinpath("models", "ours.json")))
+
+
+@dataclass
+class IntentSettings:
+    """Settings of the intent service (flags ``--min-confidence`` ... or env ``CBGO_...``)."""
+
+    model_path: str | None = field(default=None, metadata=_help(
+        "the model to serve (<base>.pt + <base>.json, from `cbgo train intent`); default: the "
+        "shipped services/intent/models/ours"))
+    min_confidence: float = field(default=0.5, metadata=_help(
+        "below this probability the best feasible intent is low_confidence and not acted on"))
+    accept_repairable: bool = field(default=False, metadata=_help(
+        "let intents compete whose unmet preconditions the planner repairs (a closed drawer, a "
+        "full gripper)"))
+    pour_angle_deg: float = field(default=90.0, metadata=_help(
+        "pour angle when the episode gives none, degrees"))
+    posterior_samples: int = field(default=32, metadata=_help(
+        "posterior samples averaged per prediction"))
+    personalise: bool = field(default=True, metadata=_help(
+        "learn from cbgo/intent/feedback corrections, per user"))
+    personal_dir: str | None = field(default=None, metadata=_help(
+        "where users' corrections and models live; default <data dir>/intent (CBGO_DATA_DIR)"))
+    default_profile: str = field(default="user1", metadata=_help(
+        "how a user the model does not know is read until they correct it"))
+    update_steps: int = field(default=300, metadata=_help(
+        "gradient steps of a personal model's fine-tuning"))
+
+    def __post_init__(self):
+        if not 0.0 <= self.min_confidence <= 1.0:
+            raise ConfigError(f"min_confidence={self.min_confidence} must be within [0, 1]")
+        if not 1 <= self.posterior_samples <= 1024:
+            raise ConfigError(f"posterior_samples={self.posterior_samples} must be within "
+                              "1-1024")
+        if not 0.0 < self.pour_angle_deg <= 180.0:
+            raise ConfigError(f"pour_angle_deg={self.pour_angle_deg} must be within (0, 180]")
+        if self.update_steps < 1:
+            raise ConfigError("update_steps must be at least 1")
+
+
+class Intent(Service):
+    """The intent service."""
+
+    name = "intent"
+    description = ("Infers the intended action, object and params from episode summaries and "
+                   "their context; publishes cbgo/intent, answers cbgo/intent/infer.")
+    settings_class = IntentSettings
+
+    def __init__(self, settings: IntentSettings):
+        super().__init__(settings)
+        self.scene: dict[str, Any] | None = None
+        self.user: str | None = None
+        self.feedback = {"stored": 0, "refused": 0}
+
+    def setup(self, ctx) -> None:
+        """Loads the model and declares inputs, outputs, the infer queryable and ``last``.
+
+        Called once before the service is announced alive.
+        """
+        torch.set_num_threads(1)  # tiny networks: threads only cost (2-core machines)
+        s = self.settings
+        self.ctx = ctx
+        model = OursModel.load(s.model_path or default_model_path())
+        personal = None
+        if s.personalise:
+            root = Path(s.personal_dir) if s.personal_dir else data_dir() / "intent"
+            personal = PersonalStore(root, model, s.default_profile, s.update_steps)
+        self.engine = IntentEngine(model, DecisionConfig(s.min_confidence, s.accept_repairable,
+                                                         s.pour_angle_deg),
+                                   personal, s.posterior_samples, s.default_profile)
+        ctx.subscribe(keys.SCENE_STATE, self.on_scene)
+        ctx.subscribe(keys.USER, self.on_user)
+        ctx.subscribe(keys.EPISODE_SUMMARY, self.on_summary)
+        ctx.subscribe(keys.INTENT_FEEDBACK, self.on_feedback)
+        ctx.queryable(keys.INTENT_INFER, self.on_infer)
+        ctx.control("last", self.on_last)
+        ctx.publishes(keys.INTENT)
+        ctx.log.info("serving model %s", model.name)
+
+    def on_scene(self, msg: dict) -> None:
+        """Keeps the latest scene for the next summary."""
+        self.scene = msg
+
+    def on_user(self, msg: dict) -> None:
+        """Keeps who is operating (served in status)."""
+        self.user = msg["user"]
+
+    def on_summary(self, msg: dict):
+        """Publishes the intent of a finished episode."""
+        return [(keys.INTENT, self.engine.from_summary(msg, self.scene))]
+
+    def on_infer(self, query: dict) -> dict:
+        """Answers ``cbgo/intent/infer``: the intent for the query's gesture vector and context."""
+        try:
+            return self.engine.infer(query["gestures"], query["scene"], query["focus"],
+                                     query["user"], query.get("params"), None,
+                                     query.get("model"))
+        except InputError as e:
+            raise QueryError(str(e)) from None
+
+    def on_feedback(self, msg: dict) -> None:
+        """Stores a correction and refits the user's model."""
+        try:
+            correction, personal = self.engine.correct(msg)
+        except InputError as e:
+            self.feedback["refused"] += 1
+            self.ctx.rejects.warning("feedback", f"correction not applied: {e}")
+            return
+        self.feedback["stored"] += 1
+        self.ctx.log.info("correction from %s: %s(%s) -> %s(%s); model %s (%s, %d corrections)",
+                          correction.user, correction.predicted.get("action"),
+                          correction.predicted.get("object"), correction.action,
+                          correction.object, personal.model.name, personal.stage,
+                          personal.corrections)
+
+    def on_last(self, query: dict) -> dict:
+        """Control verb ``last``: the last intent (of ``query.user`` if given)."""
+        user = query.get("user")
+        record = self.engine.last_by_user.get(user) if user else self.engine.last
+        if record is None:
+            return {"v": wire.SCHEMA_VERSION, "intent": None, "user": user, "episode": None}
+        return {"v": wire.SCHEMA_VERSION, "intent": record.intent, "user": record.user,
+                "episode": record.episode}
+
+    def status_extra(self) -> dict:
+        """Adds the served model, the current user and the corrections seen."""
+        last = self.engine.last
+        return {"model": self.engine.model.name, "user": self.user, "feedback": self.feedback,
+                "has_scene": self.scene is not None,
+                "last_status": last.intent["status"] if last else None}
+
+
+main = main_for(Intent)
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,130 @@
+"""Train an intent model and write it where the intent service loads it.
+
+By default: cbgo's order-invariant model on 8000 observations of D4 (seed 0), checked on 2000
+fresh ones, written to ``services/intent/models/ours`` (``.pt`` state_dict + ``.json``
+metadata) — the shipped default model. The same command reproduces it.
+
+Examples::
+
+    cbgo train intent                              # the shipped default model
+    cbgo train intent --dataset D5 -n 4000 --out /tmp/ours-d5
+    cbgo train intent --model M5 --out /tmp/m5     # one of the paper's fixed-slot models
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from cbgo.services.intent import datasets
+from cbgo.services.intent.decide import decide_arrays, joint_correct
+from cbgo.services.intent.models import (
+    MODEL_KINDS,
+    STEPS,
+    Batch,
+    OursModel,
+    SlotModel,
+    new_model,
+    train_config,
+)
+
+MODEL_ID = "intent-ours-1"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds the trainer's flags."""
+    parser.add_argument("--model", choices=MODEL_KINDS, default="ours",
+                        help="which model [ours]")
+    parser.add_argument("--dataset", choices=datasets.DATASETS, default="D4",
+                        help="training data [D4]")
+    parser.add_argument("-n", "--samples", type=int, default=8000,
+                        help="training observations [8000]")
+    parser.add_argument("--test", type=int, default=2000, help="fresh test observations [2000]")
+    parser.add_argument("--seed", type=int, default=0, help="random seed [0]")
+    parser.add_argument("--steps", type=int, default=STEPS,
+                        help=f"gradient steps [{STEPS}]")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="model path without suffix [services/intent/models/<model>]")
+
+
+def default_out(kind: str) -> Path:
+    """Returns where the service looks for a model of `kind`."""
+    return Path(__file__).parent / "models" / kind.lower()
+
+
+def evaluate(model: OursModel | SlotModel, test: datasets.Dataset) -> dict[str, float]:
+    """Returns accuracy figures of a trained model on a test dataset.
+
+    ``action`` is the argmax of p(action) (the paper's accuracy); for cbgo's model also
+    ``joint`` (the decision over feasible (action, object) pairs, right when the action and —
+    unless it ignores objects — the object are) and ``ece`` of the decision's confidence.
+    """
+    batch = Batch.from_dataset(test)
+    pred = model.predict(batch)
+    out = {"action": float(np.mean(pred.p_action.argmax(1) == test.action))}
+    if pred.joint is not None:
+        action, slot, confidence = decide_arrays(pred.joint, test.feasible, batch.mask)
+        right = joint_correct(action, slot, test.action, test.target)
+        out["joint"] = float(right.mean())
+        out["ece"] = decision_ece(confidence, right)
+        out["mean_confidence"] = float(confidence.mean())
+    return out
+
+
+def decision_ece(confidence: np.ndarray, right: np.ndarray, bins: int = 15) -> float:
+    """Returns the expected calibration error of decisions (equal-width confidence bins).
+
+    Like `cbgo.metrics.expected_calibration_error`, for a decision's confidence (the chosen
+    pair's probability) and whether it was right, rather than a class-probability matrix.
+    """
+    edges = np.linspace(0.0, 1.0, bins + 1)
+    ece = 0.0
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        inside = (confidence > lo) & (confidence <= hi)
+        if inside.any():
+            ece += inside.mean() * abs(confidence[inside].mean() - right[inside].mean())
+    return float(ece)
+
+
+def fit(kind: str, train: datasets.Dataset, steps: int = STEPS, seed: int = 0,
+        progress: bool | str = False) -> tuple[OursModel | SlotModel, float]:
+    """Trains a model of `kind` on a dataset; returns it and the training time (s)."""
+    torch.set_num_threads(1)  # tiny networks: threads only cost
+    model = new_model(kind)
+    batch = Batch.from_dataset(train)
+    config = train_config(len(train), steps=steps, seed=seed)
+    started = time.perf_counter()
+    if isinstance(model, OursModel):
+        model.fit(batch, train.action, train.target, config, progress)
+    else:
+        model.fit(batch, train.action, config, progress)
+    return model, time.perf_counter() - started
+
+
+def run(args: argparse.Namespace) -> int:
+    """Generates the data, trains, evaluates, writes the model; returns the exit code."""
+    train = datasets.make(args.dataset, args.samples, args.seed, progress=True)
+    test = datasets.make(args.dataset, args.test, args.seed + 1000, progress=True)
+    model, seconds = fit(args.model, train, args.steps, args.seed,
+                         progress=f"training {args.model}")
+    figures = evaluate(model, test)
+    model.meta.update(
+        model_id=MODEL_ID if args.model == "ours" else f"intent-{args.model}",
+        gestures=train.meta["gestures"], users=train.meta["users"],
+        actions=train.meta["actions"], cell_size_m=train.meta["cell_size_m"],
+        trained_on={"dataset": args.dataset, "samples": args.samples, "seed": args.seed,
+                    "steps": args.steps, "tables_sha256": train.meta["tables_sha256"]},
+        train_seconds=round(seconds, 1), test=figures,
+        command=f"cbgo train intent --model {args.model} --dataset {args.dataset} "
+                f"-n {args.samples} --seed {args.seed} --steps {args.steps}")
+    out = args.out or default_out(args.model)
+    model.save(out)
+    shown = ", ".join(f"{k} {v:.4f}" for k, v in figures.items())
+    print(f"{args.model} on {args.dataset} ({args.samples} observations, seed {args.seed}): "
+          f"trained in {seconds:.1f} s; test on {args.test} fresh: {shown}")
+    print(f"wrote {out.with_suffix('.pt')} and {out.with_suffix('.json')}")
+    return 0

@@ -1,0 +1,1 @@
+"""Vendored model data of mujoco-sim (a package only so that wheels ship its files)."""

@@ -1,0 +1,1 @@
+"""Meshes of the Panda model; data only."""

@@ -1,0 +1,465 @@
+"""The eleven actions, executed physically, one at a time, each verified from the physics.
+
+`Robot.execute(action, object, params)`:
+1. reads the scene from the physics and checks the preconditions (`Robot.precheck`): the world
+   model's (`cbgo.world.check`), then two it does not know yet (an empty gripper to grasp a
+   handle; room for the gripper and its load at a move's goal cell); if one fails, the action
+   is refused with it, without moving;
+2. plans it: grasp yaw, travel height, release pose, pouring direction; a plan that would
+   collide (the way of a move blocked, no collision-free pour) is refused, without moving;
+3. executes it with IK-tracked Cartesian motions and real finger contact; a grasp weld is
+   switched on only after both fingers were seen touching the object;
+4. verifies the outcome with `checks` and returns an `Outcome` (ok, or the precise failure).
+
+Targets come from the world model where it defines them (the TCP's goal cell of a move, the
+table column of ``place``); physical details (where in a drawer, how to tilt) are decided here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cbgo import world
+from cbgo.services.mujoco_sim import checks, motion, observe
+from cbgo.services.mujoco_sim.engine import SPILL_DEG, Sim, Stopped
+from cbgo.services.mujoco_sim.ik import rot_axis, rot_z, top_down
+from cbgo.services.mujoco_sim.motion import MotionError
+from cbgo.services.mujoco_sim.plan import (
+    Checker,
+    Hit,
+    finger_for_width,
+    fold_yaw,
+    grasp_half_width,
+    hang_below_tcp,
+    tcp_below_top,
+    travel_height,
+    yaw_candidates,
+)
+from cbgo.services.mujoco_sim.scenes import tray_spot
+from cbgo.world import DEFAULT_GRID, Grid, Scene
+
+OPEN_MARGIN = 0.012  # m between an open pad and the object
+POUR_CLEARANCE = 0.025  # m between the pouring cup and the target's rim
+MAX_POUR_DEG = 135.0
+HANDLE_HALF_WIDTH = 0.012
+HAND_BOTTOM = 0.045  # m from the TCP up to the underside of the hand
+HAND_HALF = (0.035, 0.105)  # m, the hand's half extents across and along the fingers' axis
+
+
+class ActionError(Exception):
+    """The action was attempted and did not work (a world outcome)."""
+
+
+class Refused(Exception):  # noqa: N818 - a refusal, not an error
+    """The action is infeasible physically; nothing moved."""
+
+
+@dataclass
+class Outcome:
+    """What an action did.
+
+    Attributes:
+        ok: the success check passed.
+        error: the refusal or failure, as a sentence (None when ok).
+        sim_s: simulated seconds the action took.
+        refused: nothing moved (a precondition failed).
+    """
+
+    ok: bool
+    error: str | None
+    sim_s: float
+    refused: bool = False
+
+
+def missing_preconditions(action: str, scene: Scene) -> str | None:
+    """Returns a failed precondition that the world model does not know (yet), or None.
+
+    Grasping a drawer's handle needs an empty gripper.
+    """
+    if action in ("open", "close") and scene.robot.holding is not None:
+        return f"the gripper holds {scene.robot.holding}; it must be empty to grasp a handle"
+    return None
+
+
+class Robot:
+    """Executes actions on a simulation.
+
+    Args:
+        sim: the simulation.
+        grid: the world model's grid.
+    """
+
+    def __init__(self, sim: Sim, grid: Grid = DEFAULT_GRID):
+        self.sim, self.grid = sim, grid
+        self.checker = Checker(sim)
+
+    def symbolic(self) -> Scene:
+        """Returns the world model's view of the physics right now."""
+        return Scene.from_dict({"objects": observe.observe_objects(self.sim),
+                                "robot": observe.observe_robot(self.sim)})
+
+    def precheck(self, action: str, obj: str | None, params: dict | None = None,
+                 scene: Scene | None = None) -> str | None:
+        """Returns why the action cannot be done in this scene (nothing moves), or None.
+
+        The world model's preconditions, then those it does not know yet: an empty gripper to
+        grasp a handle, and a move's goal cell free of objects.
+        """
+        params = {**world.actions.DEFAULT_PARAMS.get(action, {}), **(params or {})}
+        scene = self.symbolic() if scene is None else scene
+        reason = world.check(action, obj, scene, params, self.grid)
+        if reason is None:
+            reason = missing_preconditions(action, scene)
+        if reason is None and action in world.MOVES:
+            reason = self._goal_cell_taken(action, params, scene)
+        return reason
+
+    def _goal_cell_taken(self, action: str, params: dict, scene: Scene) -> str | None:
+        """Returns why the gripper (and its load) does not fit at a move's goal, or None."""
+        sim = self.sim
+        goal = np.asarray(world.apply(action, None, params, scene, self.grid).robot.tcp, float)
+        held = sim.holding
+        _, rot = sim.tcp()
+        yaw = math.atan2(rot[1, 0], rot[0, 0])
+        c, s = abs(math.cos(yaw)), abs(math.sin(yaw))
+        load = grasp_half_width(sim.items[held]) if held else 0.02
+        # (bottom z, half x, half y) of what hangs under the TCP, and of the hand above it
+        parts = [(goal[2] - hang_below_tcp(sim.items[held] if held else None), load, load),
+                 (goal[2] + HAND_BOTTOM, HAND_HALF[0] * c + HAND_HALF[1] * s,
+                  HAND_HALF[0] * s + HAND_HALF[1] * c)]
+        for name, item in sim.items.items():
+            if name == held:
+                continue
+            for (x0, x1, y0, y1), top in observe.footprints(sim, item):
+                for bottom, hx, hy in parts:
+                    if (top > bottom - 0.005 and x0 - hx < goal[0] < x1 + hx
+                            and y0 - hy < goal[1] < y1 + hy):
+                        cell = list(self.grid.cell_of(goal))
+                        return f"the gripper does not fit at the goal cell {cell}: {name} is there"
+        return None
+
+    def execute(self, action: str, obj: str | None, params: dict | None = None) -> Outcome:
+        """Executes one action and verifies it; see the module docstring."""
+        sim = self.sim
+        t0 = sim.time
+        scene = self.symbolic()
+        reason = self.precheck(action, obj, params, scene)
+        if reason is not None:
+            return Outcome(False, f"refused: {reason}", 0.0, refused=True)
+        params = {**world.actions.DEFAULT_PARAMS.get(action, {}), **(params or {})}
+        sim.action = action
+        try:
+            if action in world.MOVES:
+                error = self._move(action, params, scene)
+            else:
+                error = getattr(self, f"_{action}")(obj, params, scene)
+        except Refused as e:
+            return Outcome(False, f"refused: {e}", sim.time - t0, refused=True)
+        except Stopped:
+            error = "stopped"
+            if sim.grasped_drawer() is not None:
+                sim.detach()  # no hidden weld to a handle may outlive the action
+        except (MotionError, ActionError) as e:
+            error = str(e)
+        finally:
+            sim.action, sim.moving = None, False
+        return Outcome(error is None, error, sim.time - t0)
+
+    # ------------------------------------------------------------------ planning helpers
+
+    def _q_for(self, pos, rot, seed=None):
+        seed = self.sim.q_cmd if seed is None else seed
+        res = self.sim.ik.solve(pos, rot, seed, iterations=60)
+        return res.q if res.ok else None
+
+    def _pose_hits(self, pos, rot, fingers: float, approach: float = 0.0) -> list[Hit] | None:
+        """Returns what the robot would touch at a pose or on the approach from above.
+
+        None: out of reach.
+        """
+        q = self._q_for(pos, rot)
+        if q is None:
+            return None
+        hits = self.checker.hits(q, fingers)
+        seed = q
+        for dz in np.arange(0.025, approach + 1e-9, 0.025):
+            if hits:
+                break
+            q_up = self._q_for(np.asarray(pos) + [0, 0, dz], rot, seed)
+            if q_up is None:
+                return None
+            hits = self.checker.hits(q_up, fingers)
+            seed = q_up
+        return hits
+
+    def _best_pose(self, candidates, pose_of, fingers: float, approach: float,
+                   lifts=(0.0,)):
+        """Returns (rot, position) of the first collision-free candidate, else the least bad.
+
+        Lifts are tried lowest first, and within one lift the yaws in order.
+
+        Args:
+            candidates: hand yaws to try.
+            pose_of: rot -> TCP position at that hand orientation (before the lift).
+            fingers: the finger opening during the approach.
+            approach: how far above the pose the vertical approach is checked, m.
+            lifts: heights above the pose to try, m (a load may drop that far).
+
+        Raises:
+            Refused: no candidate is reachable.
+        """
+        best, best_depth = None, math.inf
+        for lift in lifts:
+            for yaw in candidates:
+                rot = motion.fold_to_wrist(self.sim, pose_of(top_down(yaw)), top_down(yaw))
+                pos = pose_of(rot) + [0.0, 0.0, lift]
+                hits = self._pose_hits(pos, rot, fingers, approach)
+                if hits is None:
+                    continue
+                depth = sum(h.depth for h in hits) + lift
+                if not hits:
+                    return rot, pos
+                if depth < best_depth:
+                    best, best_depth = (rot, pos), depth
+        if best is None:
+            raise Refused("no reachable top-down pose for the gripper there")
+        return best
+
+    # ------------------------------------------------------------------ pick and release
+
+    def _pick_up(self, name: str, params: dict, scene: Scene) -> str | None:
+        sim = self.sim
+        item = sim.items[name]
+        center, _ = sim.pose(name)
+        grasp_z = observe.top_z(sim, name) - tcp_below_top(item)
+        pre = finger_for_width(grasp_half_width(item) + OPEN_MARGIN)
+        self.checker.sync()
+        rot, pos = self._best_pose(yaw_candidates(item, sim), lambda _r: np.array(
+            [center[0], center[1], grasp_z]), pre, approach=0.1, lifts=(0.0, 0.008))
+        height = travel_height(sim, None)
+        motion.gripper(sim, pre, 0.2)
+        motion.travel(sim, pos, rot, height, fold=False)
+        motion.gripper(sim, 0.0, 0.5)
+        left, right = sim.finger_contacts(item.geoms)
+        if not (left and right):
+            motion.gripper(sim, pre, 0.2)
+            motion.line(sim, pos + [0, 0, 0.1], rot)
+            raise ActionError(f"could not grasp {name}: "
+                              + ("no finger" if not (left or right) else "only one finger")
+                              + " touched it")
+        sim.attach(name)
+        lift_to = max(travel_height(sim, item), pos[2] + 0.06)
+        motion.line(sim, [pos[0], pos[1], lift_to], rot)
+        return checks.grasped(sim, name, center[2])
+
+    def _release_at(self, goal, surface: list[int]) -> None:
+        """Puts the held object's centre at `goal` and lets go.
+
+        `surface` are the geoms it lands on, whose contacts do not count while planning.
+        """
+        sim = self.sim
+        held = sim.holding
+        item = sim.items[held]
+        tcp, r_tcp = sim.tcp()
+        obj_in_tcp = r_tcp.T @ (sim.pose(held)[0] - tcp)
+        release = finger_for_width(grasp_half_width(item) + OPEN_MARGIN)
+        self.checker.sync(carried=held, ignore_geoms=surface)
+        yaw_now = math.atan2(r_tcp[1, 0], r_tcp[0, 0])
+        rot, pos = self._best_pose(yaw_candidates(item, sim, yaw_now),
+                                   lambda r: np.asarray(goal) - r @ obj_in_tcp, release,
+                                   approach=0.1, lifts=(0.0, 0.01, 0.02))
+        motion.travel(sim, pos, rot, travel_height(sim, item), fold=False)
+        sim.detach()
+        motion.gripper(sim, release, 0.3)
+        motion.pause(sim, 0.1)
+        up = max(travel_height(sim, None), pos[2] + 0.08)
+        motion.line(sim, [pos[0], pos[1], up], rot)
+        motion.pause(sim, 0.1)
+
+    def _place(self, _obj, params: dict, scene: Scene) -> str | None:
+        sim = self.sim
+        held = sim.holding
+        after = world.apply("place", None, params, scene, self.grid)
+        x, y, _ = after.get(held).position
+        item = sim.items[held]
+        self._release_at([x, y, item.dims.half_height + 0.003], [sim.built.table_geom])
+        return checks.placed(sim, held, (x, y))
+
+    def _put_on(self, base: str, params: dict, scene: Scene) -> str | None:
+        sim = self.sim
+        held = sim.holding
+        item = sim.items[held]
+        b = sim.items[base]
+        xy = (observe.drawer_center(sim, b) if b.type == "drawer" else sim.pose(base)[0])[:2]
+        z = observe.top_z(sim, base) + item.dims.half_height + 0.003
+        surface = [sim.model.geom(f"{base}/cab_top").id] if b.type == "drawer" else b.geoms
+        self._release_at([xy[0], xy[1], z], list(surface))
+        return checks.stacked(sim, held, base)
+
+    def _put_into(self, drawer: str, params: dict, scene: Scene) -> str | None:
+        sim = self.sim
+        held = sim.holding
+        goal = tray_spot(sim, drawer, sim.items[held].dims.half_height) + [0, 0, 0.003]
+        self._release_at(goal, [sim.items[drawer].bottom_geom])
+        return checks.in_drawer(sim, held, drawer)
+
+    # ------------------------------------------------------------------ moves
+
+    def _move(self, action: str, params: dict, scene: Scene) -> str | None:
+        sim = self.sim
+        goal = np.asarray(world.apply(action, None, params, scene, self.grid).robot.tcp, float)
+        tcp, rot = sim.tcp()
+        held = sim.holding
+        self.checker.sync(carried=held)
+        start = self._q_for(tcp, rot)
+        blocked_at_start = {h.what for h in self.checker.hits(start)} if start is not None \
+            else set()
+        steps = max(2, int(np.linalg.norm(goal - tcp) / 0.01))
+        seed = start
+        for s in np.linspace(0.0, 1.0, steps)[1:]:
+            q = self._q_for(tcp + s * (goal - tcp), rot, seed)
+            if q is None:
+                raise Refused(f"the gripper cannot reach {np.round(goal, 2).tolist()}")
+            new = [h.what for h in self.checker.hits(q) if h.what not in blocked_at_start]
+            if new:
+                raise Refused(f"the way {action.removeprefix('move_')} is blocked by {new[0]}")
+            seed = q
+        offset = sim.pose(held)[0] - tcp if held else None
+        motion.line(sim, goal, rot, tol=0.003)
+        motion.pause(sim, 0.1)
+        return checks.moved(sim, goal, held, offset)
+
+    # ------------------------------------------------------------------ drawers
+
+    def _handle_pose(self, drawer: str) -> np.ndarray:
+        item = self.sim.items[drawer]
+        return self.sim.data.xpos[item.body] + np.array(item.dims.handle)
+
+    def _drawer(self, drawer: str, opening: bool) -> str | None:
+        sim = self.sim
+        item = sim.items[drawer]
+        handle = self._handle_pose(drawer)
+        rot = top_down(0.0)
+        pre = finger_for_width(HANDLE_HALF_WIDTH + OPEN_MARGIN)
+        motion.gripper(sim, pre, 0.2)
+        motion.travel(sim, handle, rot, travel_height(sim, None), fold=True)
+        motion.gripper(sim, 0.0, 0.5)
+        left, right = sim.finger_contacts([item.handle_geom])
+        if not (left and right):
+            motion.gripper(sim, pre, 0.2)
+            motion.line(sim, handle + [0, 0, 0.08], sim.tcp()[1])
+            raise ActionError(f"could not grasp the handle of {drawer}")
+        sim.attach(drawer)
+        q = float(sim.data.qpos[item.qpos])
+        shift = -(item.dims.travel - q - 0.002) if opening else q + 0.003
+        _, rot_now = sim.tcp()
+        try:
+            motion.line(sim, handle + [shift, 0.0, 0.0], rot_now, speed=motion.SLOW, tol=0.005,
+                        settle_s=0.6)
+        except MotionError:
+            pass  # the check below says how far the drawer went
+        finally:
+            sim.detach()
+            motion.gripper(sim, pre, 0.3)
+        tcp, rot_now = sim.tcp()
+        motion.line(sim, tcp + [0, 0, 0.08], rot_now)
+        return checks.drawer_open(sim, drawer) if opening else checks.drawer_closed(sim, drawer)
+
+    def _open(self, drawer: str, params: dict, scene: Scene) -> str | None:
+        return self._drawer(drawer, opening=True)
+
+    def _close(self, drawer: str, params: dict, scene: Scene) -> str | None:
+        return self._drawer(drawer, opening=False)
+
+    # ------------------------------------------------------------------ pour
+
+    def _pour(self, target: str, params: dict, scene: Scene) -> str | None:
+        sim = self.sim
+        source = sim.holding
+        angle = params.get("angle_deg", 90.0)
+        if type(angle) not in (int, float):
+            raise Refused(f"angle_deg must be a number of degrees, got {angle!r}")
+        if not SPILL_DEG + 5 <= angle <= MAX_POUR_DEG:
+            raise Refused(f"angle_deg {angle:g} is outside {SPILL_DEG + 5:g}..{MAX_POUR_DEG:g}: "
+                          f"liquid leaves a cup tilted beyond {SPILL_DEG:g}°")
+        poses = self._pour_path(source, target, math.radians(float(angle)))
+        item = sim.items[source]
+        motion.travel(sim, poses[0][0], poses[0][1], travel_height(sim, item), fold=False)
+        motion.follow(sim, poses, duration=max(1.0, angle / 60.0))
+        motion.pause(sim, 0.3)
+        motion.follow(sim, poses[::-1], duration=max(1.0, angle / 60.0))
+        tcp, rot = sim.tcp()
+        motion.line(sim, [tcp[0], tcp[1], travel_height(sim, item)], rot)
+        return checks.poured(sim, source, target)
+
+    def _pour_path(self, source: str, target: str, angle: float):
+        """Returns TCP poses that tilt the held cup about its lip over the target's opening.
+
+        Of the tilt directions that are reachable and collision-free, the one with the least
+        joint travel; from higher up when no low one is free.
+
+        Raises:
+            Refused: no direction works.
+        """
+        sim = self.sim
+        mouth, _ = sim.opening_of(target)
+        tcp, r_tcp = sim.tcp()
+        p_src, r_src = sim.pose(source)
+        tcp_in_src = (r_src.T @ (tcp - p_src), r_src.T @ r_tcp)
+        dims = sim.items[source].dims
+        self.checker.sync(carried=source)
+        toward_robot = math.atan2(-mouth[1], -mouth[0])
+        for lift in (0.0, 0.035, 0.07):  # pour from higher up when the low path is blocked
+            best, best_cost = None, math.inf
+            for k in range(8):
+                heading = toward_robot + k * math.pi / 4
+                d = np.array([math.cos(heading), math.sin(heading), 0.0])
+                poses = self._tilt_poses(d, r_tcp, r_src, tcp_in_src, dims, mouth + [0, 0, lift],
+                                         angle)
+                cost = self._path_cost(poses, best_cost)
+                if cost < best_cost:
+                    best, best_cost = poses, cost
+            if best is not None:
+                return best
+        raise Refused(f"no reachable, collision-free way to pour into {target}")
+
+    @staticmethod
+    def _tilt_poses(d, r_tcp, r_src, tcp_in_src, dims, mouth, angle):
+        """Returns TCP poses tilting the held cup towards d about its lip, lip over mouth."""
+        axis = np.cross([0.0, 0.0, 1.0], d)
+        # Turn the cup about its own axis first so that the fingers sit on the tilt axis: the
+        # hand then swings over the lip instead of dipping a finger under it.
+        closing = r_tcp[:, 1]
+        turn = fold_yaw(math.atan2(axis[1], axis[0]) - math.atan2(closing[1], closing[0]))
+        r_start = rot_z(turn) @ r_src
+        lip_body = dims.radius * (r_start.T @ d) + np.array([0, 0, dims.half_height])
+        poses = []
+        for theta in np.linspace(0.0, angle, 10):
+            rot_src = rot_axis(axis, theta) @ r_start
+            lip = mouth + [0, 0, POUR_CLEARANCE + dims.height * max(math.cos(theta), 0.0)]
+            center = lip - rot_src @ lip_body
+            poses.append((center + rot_src @ tcp_in_src[0], rot_src @ tcp_in_src[1]))
+        return poses
+
+    def _path_cost(self, poses, bound: float = math.inf) -> float:
+        """Returns the joint travel along a path of TCP poses.
+
+        Infinite when a pose is unreachable or colliding, the IK jumps between branches, or
+        the travel exceeds `bound` (a better path is known).
+        """
+        start = self.sim.ik.solve(poses[0][0], poses[0][1], self.sim.q_cmd, iterations=60)
+        if not start.ok:
+            return math.inf
+        seed = start.q
+        cost = float(np.abs(seed - self.sim.q_cmd).sum())
+        for pos, rot in poses:
+            res = self.sim.ik.solve(pos, rot, seed, iterations=30)
+            cost += float(np.abs(res.q - seed).sum())
+            if (not res.ok or np.abs(res.q - seed).max() > 0.5 or cost >= bound
+                    or self.checker.hits(res.q)):
+                return math.inf
+            seed = res.q
+        return cost

@@ -1,0 +1,1 @@
+"""static-gesture: per-frame static gesture probabilities from a Bayesian MLP."""

@@ -1,0 +1,168 @@
+"""static-gesture: per frame and hand, the probability of every static gesture.
+
+Behaviour (the contract is services/static_gesture/README.md):
+- for every hand of every ``cbgo/hands/frame``, the 57 features (right hands mirrored into the
+  recordings' left-hand space) go through the Bayesian MLP (`classifier`); all hands of a frame
+  are one batch. One ``cbgo/gestures/static`` per hand: ``ts`` and ``seq`` are the frame's (the
+  moment the pose was seen, so consumers line gestures up with frames), ``hand_id`` and
+  ``side`` the hand's, ``names``/``probs`` the model's full vector (with ``none``, the no-gesture
+  class, when the model has it), ``model`` its id. There is no threshold: an uncertain hand
+  gets its honest, flat vector. A frame with no hand gives no message;
+- the model: ``--model PATH``, else the user's model (``data_dir()/models/static-gesture``, what
+  ``cbgo train static`` and ``cbgo gestures record`` write) if it exists, else the one shipped
+  in the package. A model that does not load at start is a configuration error (exit 2);
+- ``@ctl/static-gesture/reload`` loads the model again (optionally ``{model: PATH}`` to switch)
+  and answers with its id; a model that does not load is an error reply and the old one keeps
+  running. The model files are also polled every ``--watch-s`` seconds (their mtime and size;
+  with no ``--model``, the default path is re-resolved each time, so the user's first own
+  model is picked up): a change is loaded the same way, and a broken file is logged and counted
+  once, the old model staying in service.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cbgo import keys, wire
+from cbgo.errors import ConfigError, QueryError
+from cbgo.runtime import Service, main_for
+from cbgo.services.static_gesture.classifier import (
+    DEFAULT_SAMPLES,
+    StaticClassifier,
+    default_model_path,
+    file_stamps,
+)
+
+
+def _help(text: str) -> dict:
+    return {"help": text}
+
+
+@dataclass
+class StaticGestureSettings:
+    """Settings of static-gesture (flags ``--model`` ... or env ``CBGO_MODEL`` ...)."""
+
+    model: str | None = field(default=None, metadata=_help(
+        "model base path (.pt + .json); default: the user's model in "
+        "data_dir()/models/static-gesture if present, else the shipped one"))
+    samples: int = field(default=DEFAULT_SAMPLES, metadata=_help(
+        "posterior samples averaged per prediction"))
+    watch_s: float = field(default=1.0, metadata=_help(
+        "poll the model files for changes every S seconds (0: never)"))
+
+    def __post_init__(self):
+        if not 1 <= self.samples <= 1024:
+            raise ConfigError(f"samples={self.samples} must be within 1-1024")
+        if self.watch_s < 0:
+            raise ConfigError(f"watch_s={self.watch_s} must be 0 (off) or positive")
+
+
+class StaticGesture(Service):
+    """Classifies every hand of every frame into the static gestures."""
+
+    name = "static-gesture"
+    description = ("Publishes cbgo/gestures/static (per frame and hand: probabilities of every "
+                   "static gesture from a Bayesian MLP) for each cbgo/hands/frame.")
+    settings_class = StaticGestureSettings
+
+    def __init__(self, settings: StaticGestureSettings):
+        super().__init__(settings)
+        self.classifier: StaticClassifier | None = None
+        self._stamps: tuple = ()
+        self._watched: Path | None = None
+        self.hands = 0
+
+    def setup(self, ctx) -> None:
+        """Loads the model (a broken one stops the start), declares inputs, outputs, reload."""
+        self.ctx = ctx
+        path = self.model_path()
+        stamps = file_stamps(path)
+        self._install(StaticClassifier.load(path, self.settings.samples), path, stamps)
+        ctx.log.info("model %s loaded from %s: %s", self.classifier.model_id, path,
+                     ", ".join(self.classifier.names))
+        ctx.subscribe(keys.HANDS_FRAME, self.on_hands_frame)
+        ctx.publishes(keys.GESTURES_STATIC)
+        ctx.control("reload", self.on_reload)
+        if self.settings.watch_s > 0:
+            ctx.every(self.settings.watch_s, self.on_watch)
+
+    def model_path(self) -> Path:
+        """Returns the model to use now: the configured path, or the default (re-resolved)."""
+        return Path(self.settings.model) if self.settings.model else default_model_path()
+
+    def _install(self, classifier: StaticClassifier, path: Path, stamps: tuple) -> None:
+        # The stamps are taken BEFORE loading: files replaced meanwhile differ from them and are
+        # loaded again on the next poll (and the weights' hash refuses a mixed pair).
+        self.classifier, self._watched, self._stamps = classifier, path, stamps
+
+    def on_hands_frame(self, msg: dict) -> list:
+        """Returns one gestures/static message per hand of the frame."""
+        hands = msg["hands"]
+        if not hands:
+            return []
+        probs = self.classifier.classify_hands(hands)
+        ok = np.isfinite(probs).all(1)
+        if not ok.all():  # degenerate geometry; the wire check cannot see it
+            self.ctx.counters.add("rejected", int((~ok).sum()))
+            self.ctx.rejects.warning("features", f"frame {msg['seq']}: a hand's features are "
+                                     "not finite; hand skipped")
+        self.hands += len(hands)
+        clf = self.classifier
+        return [(keys.GESTURES_STATIC, {
+            "v": wire.SCHEMA_VERSION, "ts": msg["ts"], "seq": msg["seq"],
+            "hand_id": hand["id"], "side": hand["side"], "names": clf.names,
+            "probs": row.tolist(), "model": clf.model_id})
+            for hand, row, good in zip(hands, probs, ok, strict=True) if good]
+
+    def on_reload(self, query: dict) -> dict:
+        """Control verb: load the model again (or ``{model: PATH}``); keep the old on failure."""
+        requested = query.get("model")
+        if requested is not None and not (isinstance(requested, str) and requested):
+            raise QueryError("model must be a path string")
+        path = Path(requested) if requested else self.model_path()
+        previous = self.classifier.model_id
+        stamps = file_stamps(path)
+        try:
+            classifier = StaticClassifier.load(path, self.settings.samples)
+        except ConfigError as e:
+            self.ctx.counters.error("reload", str(e))
+            raise QueryError(f"reload failed, still serving {previous}: {e}") from None
+        if requested:
+            self.settings.model = str(path)
+        self._install(classifier, path, stamps)
+        self.ctx.log.info("reloaded: %s -> %s (%s)", previous, classifier.model_id, path)
+        return {"v": wire.SCHEMA_VERSION, "ok": True, "model": classifier.model_id,
+                "previous": previous, "path": str(path), "names": classifier.names}
+
+    def on_watch(self) -> None:
+        """Timer: loads the model again if its files changed (or the default path moved)."""
+        path = self.model_path()
+        stamps = file_stamps(path)
+        if path == self._watched and stamps == self._stamps:
+            return
+        previous = self.classifier.model_id
+        try:
+            classifier = StaticClassifier.load(path, self.settings.samples)
+        except ConfigError as e:
+            self._watched, self._stamps = path, stamps  # report a broken file once
+            self.ctx.counters.error("watch", str(e))
+            self.ctx.log.error("model files changed but do not load; still serving %s: %s",
+                               previous, e)
+            return
+        self._install(classifier, path, stamps)
+        self.ctx.log.info("model files changed: %s -> %s (%s)", previous,
+                          classifier.model_id, path)
+
+    def status_extra(self) -> dict:
+        """Adds the model in service and the number of hands classified."""
+        return {"model": self.classifier.describe() if self.classifier else None,
+                "hands_classified": self.hands}
+
+
+main = main_for(StaticGesture)
+
+if __name__ == "__main__":
+    main()

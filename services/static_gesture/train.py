@@ -1,0 +1,574 @@
+"""Train the static-gesture Bayesian MLP and write it where the service loads it.
+
+Training data (every row is the paper's 57 features, right hands mirrored into the recordings'
+left-hand space):
+
+- the real Leap recordings vendored with cbgo (``cbgo.hands.data``, 4477 frames of the 8
+  static gestures) — the evaluation split in ``../shared/eval/`` is never read here;
+- simulated hands from the calibrated hand model: ``--per-gesture`` renditions of each gesture,
+  each by a NEW simulated person (``HandShape.sample``: size 0.85–1.15, bone lengths ±4 %,
+  knuckles ±1.5 mm; left or right hand at random), the gesture's calibrated pose spread scaled by
+  0.7–1.3, the palm turned by N(0, 10°) in roll, pitch and yaw and placed anywhere in the middle
+  of the sensor's field;
+- the no-gesture class ``none`` (``--none`` poses; 0 leaves it out): the relaxed hand
+  (``neutral_pose``) with every joint jittered by a 10° correlated spread, 60 % of them blended
+  towards a random gesture by 0–40 % — what a hand looks like between gestures and while it
+  forms one. It lets the episode service tell "no gesture" from "five";
+- the user's own gestures recorded by demonstration (``cbgo gestures record NAME --static``),
+  stored in ``data_dir()/gestures/static/NAME.npz``: a new name becomes a new class (after the 8
+  and before ``none``), a known name adds examples to that class. Few frames of one take are
+  augmented to ``USER_MIN_ROWS`` rows by jittering them (half their own spread, at least 0.03 rad
+  and 1.5 mm), so that a new class is not a handful of points.
+
+Classes are weighted to equal total weight in the likelihood. Inputs are the 57 features minus
+the thumb-metacarpal ones (2..5, ``UNTRUSTED_FEATURES``: the recording device's convention for
+a zero-length bone, which no other device reproduces), standardised with the training mean/std.
+The network is the paper's shape, one tanh hidden layer (``--hidden``, 32 by default), with
+biases, Normal(0, 1) priors on every weight, trained by maximising the ELBO (``cbgo.bayes``:
+closed-form KL, local reparameterisation, Adam). These choices were made on held-out TRAINING
+data only (``--validate``: a grouped fifth of the real recordings, k-means clusters of near-
+identical frames held out whole so that neighbouring frames of one recording do not leak, and
+simulated people the training never saw).
+
+The model is written atomically (temporary files, then renamed: weights first, metadata last)
+with the weights' SHA-256 in the metadata, so a running service that polls the files never
+loads half a model.
+
+Examples::
+
+    cbgo train static                       # → data_dir()/models/static-gesture.{pt,json}
+    cbgo train static --validate            # also print held-out figures first
+    cbgo train static --shipped             # regenerate the default model shipped in the repo
+    cbgo train static --no-none --out /tmp/m
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+import cbgo
+from cbgo import bayes
+from cbgo.config import data_dir
+from cbgo.hands import features as F
+from cbgo.hands.data import load_real_features, real_features_sha256
+from cbgo.hands.model import HandPose, HandShape, blend, build_hands, neutral_pose
+from cbgo.hands.poses import correlated_normal, gesture_pose
+from cbgo.metrics import expected_calibration_error
+from cbgo.services.static_gesture.classifier import (
+    KIND,
+    NONE,
+    StaticClassifier,
+    model_id_of,
+    sha256_file,
+    shipped_model_path,
+    user_model_path,
+)
+
+INPUTS = tuple(j for j in range(F.N_FEATURES) if j not in F.UNTRUSTED_FEATURES)
+USER_MIN_ROWS = 300
+NONE_BLEND_MAX = 0.25  # how far a no-gesture hand may be into forming a gesture
+_DEG = np.pi / 180.0
+# Seed streams: training and validation never draw the same simulated people; the benchmark
+# uses its own stream too (``SIM_STREAM_BENCH``).
+SIM_STREAM_TRAIN, SIM_STREAM_VALIDATE, SIM_STREAM_BENCH = 1, 2, 3
+
+
+@dataclass
+class TrainOptions:
+    """What to train on and how (the defaults are what ships)."""
+
+    per_gesture: int = 400
+    none: int = 800
+    hidden: list[int] = field(default_factory=lambda: [32])
+    epochs: int = 100
+    batch_size: int = 512
+    lr: float = 0.02
+    prior_sigma: float = 1.0
+    kl_scale: float = 1.0
+    none_weight: float = 1.0
+    seed: int = 0
+    user_gestures: bool = True
+
+
+# --------------------------------------------------------------------------- simulated data
+
+
+def _rng(stream: int, seed: int) -> np.random.Generator:
+    return np.random.default_rng([stream, seed])
+
+
+def _shapes(rng: np.random.Generator, n: int) -> list[HandShape]:
+    return [HandShape.sample(rng, side=("left", "right")[int(rng.integers(2))])
+            for _ in range(n)]
+
+
+def _features(rng: np.random.Generator, shapes: list[HandShape], poses: list[HandPose]
+              ) -> np.ndarray:
+    palms = rng.uniform([-80.0, 150.0, -60.0], [80.0, 300.0, 60.0], size=(len(poses), 3))
+    return F.hands_features(build_hands(shapes, poses, palms), to_recorded_side=True)
+
+
+def _turned(pose: HandPose, rng: np.random.Generator, deg: float = 10.0) -> HandPose:
+    roll, pitch, yaw = rng.normal(0.0, deg * _DEG, 3)
+    return pose.rotated(roll=roll, pitch=pitch, yaw=yaw)
+
+
+def simulate_gestures(names: list[str], per_gesture: int, rng: np.random.Generator
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Simulated renditions of static gestures, a new person each.
+
+    Args:
+        names: gestures known to the hand model (``STATIC_GESTURES``), label order.
+        per_gesture: renditions per gesture.
+        rng: the random generator.
+
+    Returns:
+        ``(x, y)``: features (N, 57) on the recorded side and labels into ``names``.
+    """
+    poses, labels = [], []
+    for g, name in enumerate(names):
+        for _ in range(per_gesture):
+            poses.append(_turned(gesture_pose(name, rng, float(rng.uniform(0.7, 1.3))), rng))
+            labels.append(g)
+    if not poses:
+        return np.zeros((0, F.N_FEATURES)), np.zeros(0, dtype=np.int64)
+    return _features(rng, _shapes(rng, len(poses)), poses), np.asarray(labels, dtype=np.int64)
+
+
+def simulate_none(count: int, gestures: list[str], rng: np.random.Generator) -> np.ndarray:
+    """Simulated no-gesture poses: relaxed hands, and hands part-way into a gesture.
+
+    Args:
+        count: how many.
+        gestures: the gestures a hand may be forming (blended by 0–40 %).
+        rng: the random generator.
+
+    Returns:
+        Features (count, 57) on the recorded side.
+    """
+    if count <= 0:
+        return np.zeros((0, F.N_FEATURES))
+    relaxed = neutral_pose().to_vector()
+    jitter = np.r_[np.full(21, 10.0 * _DEG), np.zeros(3)]
+    poses = []
+    for _ in range(count):
+        pose = HandPose.from_vector(relaxed + correlated_normal(rng) * jitter)
+        if rng.random() < 0.6:
+            target = gesture_pose(gestures[int(rng.integers(len(gestures)))], rng)
+            pose = blend(pose, target, float(rng.uniform(0.0, NONE_BLEND_MAX)))
+        poses.append(_turned(pose, rng))
+    return _features(rng, _shapes(rng, count), poses)
+
+
+# --------------------------------------------------------------------------- user gestures
+
+
+def gestures_dir(env=None) -> Path:
+    """Returns where recorded static gestures live: ``data_dir()/gestures/static``."""
+    return data_dir(env) / "gestures" / "static"
+
+
+@dataclass
+class UserGesture:
+    """One recorded gesture: its name, feature rows and who recorded it when."""
+
+    name: str
+    x: np.ndarray
+    takes: list[dict]
+    path: Path | None = None
+
+
+def store_gesture(name: str, x: np.ndarray, take: dict, directory: Path | None = None,
+                  replace: bool = False) -> Path:
+    """Adds a take to ``<directory>/<name>.npz`` (written atomically).
+
+    Args:
+        name: the gesture name.
+        x: features (N, 57) on the recorded side.
+        take: attribution of the take: user, ts, time, count, device.
+        directory: defaults to `gestures_dir`.
+        replace: drop earlier takes of this name instead of adding to them.
+
+    Returns:
+        The file written.
+    """
+    directory = gestures_dir() if directory is None else Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / f"{name}.npz"
+    rows, takes = np.asarray(x, dtype=np.float64), [take]
+    if path.is_file() and not replace:
+        old = read_gesture(path)
+        rows, takes = np.concatenate([old.x, rows]), old.takes + takes
+    meta = {"name": name, "feature_version": F.FEATURE_VERSION, "count": len(rows),
+            "takes": takes}
+    tmp = directory / f"tmp-{os.getpid()}-{name}.npz"
+    np.savez(tmp, X=rows, meta=np.array(json.dumps(meta)))
+    os.replace(tmp, path)
+    return path
+
+
+def read_gesture(path: Path) -> UserGesture:
+    """Reads one recorded gesture file.
+
+    Raises:
+        ValueError: not a gesture file of this feature version.
+    """
+    with np.load(path, allow_pickle=False) as data:
+        meta = json.loads(str(data["meta"]))
+        x = data["X"].astype(np.float64)
+    if meta.get("feature_version") != F.FEATURE_VERSION or x.ndim != 2 or x.shape[1] != 57:
+        raise ValueError(f"{path}: feature version {meta.get('feature_version')} / shape "
+                         f"{x.shape}; record it again")
+    return UserGesture(meta["name"], x, meta.get("takes", []), path)
+
+
+def load_user_gestures(directory: Path | None = None) -> list[UserGesture]:
+    """Returns every readable recorded gesture, by name (unreadable files are reported)."""
+    directory = gestures_dir() if directory is None else Path(directory)
+    out = []
+    for path in sorted(directory.glob("*.npz")) if directory.is_dir() else []:
+        if path.name.startswith("tmp-"):
+            continue
+        try:
+            out.append(read_gesture(path))
+        except (ValueError, KeyError, OSError) as e:
+            print(f"skipping recorded gesture {path}: {e}")
+    return out
+
+
+def augment(x: np.ndarray, rows: int, rng: np.random.Generator) -> np.ndarray:
+    """Returns ``x`` plus jittered copies up to ``rows`` rows (see the module docstring)."""
+    if len(x) >= rows:
+        return x
+    floor = np.where(np.arange(F.N_FEATURES) < 42, 0.03, 1.5)
+    scale = np.maximum(0.5 * x.std(0), floor)
+    extra = x[rng.integers(len(x), size=rows - len(x))]
+    return np.concatenate([x, extra + rng.normal(0.0, 1.0, extra.shape) * scale])
+
+
+# --------------------------------------------------------------------------- data set
+
+
+@dataclass
+class Dataset:
+    """Training rows with their labels and where each came from."""
+
+    x: np.ndarray
+    y: np.ndarray
+    names: list[str]
+    source: np.ndarray  # "real", "simulated", "none", "user"
+    user_gestures: list[dict] = field(default_factory=list)
+
+    def summary(self) -> dict:
+        """Rows per class and per source."""
+        return {"rows": len(self.y),
+                "per_class": {n: int((self.y == i).sum()) for i, n in enumerate(self.names)},
+                "per_source": {s: int((self.source == s).sum())
+                               for s in ("real", "simulated", "none", "user")}}
+
+
+def build_dataset(options: TrainOptions, real: tuple | None = None,
+                  user: list[UserGesture] | None = None, stream: int = SIM_STREAM_TRAIN
+                  ) -> Dataset:
+    """Assembles the training set: real + simulated + none + the user's gestures.
+
+    Args:
+        options: counts and seed.
+        real: ``(x, y, names)`` of real recordings (default: all vendored ones).
+        user: recorded gestures (default: the user's, if ``options.user_gestures``).
+        stream: the simulation seed stream.
+    """
+    x_real, y_real, base = real if real is not None else load_real_features()
+    if user is None:
+        user = load_user_gestures() if options.user_gestures else []
+    new = sorted({g.name for g in user} - set(base) - {NONE})
+    names = [*base, *new] + ([NONE] if options.none > 0 else [])
+    rng = _rng(stream, options.seed)
+    x_sim, y_sim = simulate_gestures(list(base), options.per_gesture, rng)
+    parts = [(x_real, y_real, "real"), (x_sim, y_sim, "simulated")]
+    if options.none > 0:
+        x_none = simulate_none(options.none, list(base), rng)
+        parts.append((x_none, np.full(len(x_none), names.index(NONE)), "none"))
+    for g in user:
+        label = names.index(NONE if g.name == NONE else g.name)
+        rows = augment(g.x, USER_MIN_ROWS, rng)
+        parts.append((rows, np.full(len(rows), label), "user"))
+    return Dataset(
+        x=np.concatenate([p[0] for p in parts]), y=np.concatenate([p[1] for p in parts]),
+        names=names, source=np.concatenate([np.full(len(p[1]), p[2]) for p in parts]),
+        user_gestures=[{"name": g.name, "rows": len(g.x), "takes": g.takes} for g in user])
+
+
+# --------------------------------------------------------------------------- training
+
+
+@dataclass
+class Trained:
+    """A trained network with its metadata (not yet saved) and how training went."""
+
+    model: bayes.BayesMLP
+    metadata: dict
+    history: list[float]
+    seconds: float
+
+
+def fit(data: Dataset, options: TrainOptions, progress: bool | str = False) -> Trained:
+    """Trains the Bayesian MLP on a data set; returns it with its metadata.
+
+    Args:
+        data: the training rows.
+        options: network size, epochs, learning rate, prior, seed.
+        progress: show a progress bar (or its description).
+    """
+    t0 = time.perf_counter()
+    inputs = np.asarray(INPUTS)
+    x = data.x[:, inputs]
+    standardizer = bayes.Standardizer.fit(x)
+    counts = np.bincount(data.y, minlength=len(data.names)).astype(np.float64)
+    share = np.ones(len(data.names))
+    if NONE in data.names:
+        share[data.names.index(NONE)] = options.none_weight
+    weights = (share * len(data.y) / (share.sum() * np.maximum(counts, 1.0)))[data.y]
+    arch = bayes.Architecture(len(inputs), list(options.hidden), len(data.names), "tanh",
+                              options.prior_sigma)
+    torch.manual_seed(options.seed)
+    model = bayes.BayesMLP(arch)
+    config = bayes.TrainConfig(options.epochs, options.batch_size, options.lr, options.seed,
+                               options.kl_scale)
+    threads = torch.get_num_threads()
+    # One thread: batches of 256 × 53 are far too small to share, and on a busy machine
+    # torch's worker threads spin against each other (measured 25× slower with 2 threads).
+    torch.set_num_threads(1)
+    try:
+        history = bayes.train(model, standardizer(x), data.y, config, progress=progress,
+                              weights=weights)
+    finally:
+        torch.set_num_threads(threads)
+    model.eval()
+    metadata = {
+        "kind": KIND, "names": data.names, "none_class": NONE if NONE in data.names else None,
+        "inputs": list(INPUTS), "feature_version": F.FEATURE_VERSION,
+        "feature_names": [F.FEATURE_NAMES[i] for i in INPUTS],
+        "standardizer": standardizer, "data_hash": bayes.data_hash(data.x, data.y),
+        "real_data_sha256": real_features_sha256(), "train": config,
+        "options": asdict(options), "dataset": data.summary(),
+        "user_gestures": data.user_gestures,
+        "trained_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "final_neg_elbo": history[-1], "cbgo_version": cbgo.__version__,
+        "torch_version": torch.__version__,
+    }
+    return Trained(model, metadata, history, time.perf_counter() - t0)
+
+
+def save_model(base: str | Path, trained: Trained) -> tuple[Path, Path, str]:
+    """Writes ``<base>.pt`` and ``<base>.json`` atomically; returns (pt, json, model id).
+
+    Both go to temporary files first; the weights' SHA-256 is added to the metadata; then the
+    weights are renamed into place and the metadata last, so that a reader either sees the old
+    pair, or a new ``.pt`` its ``.json`` does not vouch for (refused, tried again later).
+    """
+    base = Path(base)
+    if base.suffix in (".pt", ".json"):
+        base = base.with_suffix("")
+    base.parent.mkdir(parents=True, exist_ok=True)
+    tmp = base.parent / f"tmp-{os.getpid()}-{base.name}"
+    pt_tmp, js_tmp = bayes.save(tmp, trained.model, trained.metadata)
+    sha = sha256_file(pt_tmp)
+    meta = json.loads(js_tmp.read_text())
+    meta.update(weights_sha256=sha, model_id=model_id_of(sha))
+    js_tmp.write_text(json.dumps(meta, indent=1) + "\n")
+    pt, js = base.with_suffix(".pt"), base.with_suffix(".json")
+    os.replace(pt_tmp, pt)
+    os.replace(js_tmp, js)
+    trained.metadata.update(weights_sha256=sha, model_id=model_id_of(sha))
+    return pt, js, model_id_of(sha)
+
+
+def classifier_of(trained: Trained, samples: int = 32) -> StaticClassifier:
+    """Returns a classifier for a freshly trained (maybe unsaved) model."""
+    meta = json.loads(json.dumps(trained.metadata, default=_plain))
+    if "weights_sha256" not in meta:  # not saved yet: pin the weights in memory instead
+        state = b"".join(t.detach().numpy().tobytes()
+                         for t in trained.model.state_dict().values())
+        meta["weights_sha256"] = hashlib.sha256(state).hexdigest()
+    return StaticClassifier.from_model(trained.model, meta, samples)
+
+
+def _plain(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if hasattr(value, "__dataclass_fields__"):
+        return asdict(value)
+    raise TypeError(f"cannot store {type(value).__name__} in model metadata")
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def grouped_split(x: np.ndarray, y: np.ndarray, fraction: float, seed: int,
+                  clusters: int = 30) -> tuple[np.ndarray, np.ndarray]:
+    """Splits real frames into (held-out, training) indices, holding out whole clusters.
+
+    The recordings are ~30 takes × 26 frames per gesture with the frames shuffled and no take
+    id; consecutive frames of a take are near-duplicates, so a random split leaks. Per gesture,
+    k-means (on standardised inputs) finds ``clusters`` groups of near-identical frames and a
+    ``fraction`` of the groups is held out whole.
+    """
+    rng = np.random.default_rng(seed)
+    z = x[:, list(INPUTS)]
+    z = (z - z.mean(0)) / np.maximum(z.std(0), 1e-6)
+    held = np.zeros(len(y), dtype=bool)
+    for g in np.unique(y):
+        idx = np.flatnonzero(y == g)
+        labels = _kmeans(z[idx], min(clusters, len(idx)), rng)
+        out = rng.choice(labels.max() + 1, max(1, round(fraction * (labels.max() + 1))),
+                         replace=False)
+        held[idx[np.isin(labels, out)]] = True
+    return np.flatnonzero(held), np.flatnonzero(~held)
+
+
+def _kmeans(z: np.ndarray, k: int, rng: np.random.Generator, iterations: int = 20
+            ) -> np.ndarray:
+    centres = z[rng.choice(len(z), k, replace=False)]
+    for _ in range(iterations):
+        labels = ((z[:, None] - centres[None]) ** 2).sum(-1).argmin(1)
+        centres = np.stack([z[labels == i].mean(0) if (labels == i).any() else centres[i]
+                            for i in range(k)])
+    return np.unique(labels, return_inverse=True)[1]
+
+
+def evaluate(clf: StaticClassifier, x: np.ndarray, y_names: list[str]) -> dict:
+    """Balanced accuracy, ECE and confusion of a classifier on labelled feature rows.
+
+    Args:
+        clf: the classifier.
+        x: features (N, 57) on the recorded side.
+        y_names: the true gesture name of each row (a name the model lacks counts as wrong).
+
+    Returns:
+        ``{balanced_accuracy, accuracy, ece, n, classes, confusion, predicted}`` where rows of
+        ``confusion`` are the true classes present (``classes``) and columns the model's names.
+    """
+    probs = clf.predict_features(x)
+    names = clf.names
+    classes = sorted(set(y_names), key=lambda n: (names.index(n) if n in names else len(names),
+                                                  n))
+    truth_cols = np.array([names.index(n) if n in names else -1 for n in y_names])
+    pred = probs.argmax(1)
+    rows = np.array([classes.index(n) for n in y_names])
+    confusion = np.zeros((len(classes), len(names)), dtype=np.int64)
+    np.add.at(confusion, (rows, pred), 1)
+    correct = pred == truth_cols
+    recall = [float(correct[rows == i].mean()) for i in range(len(classes))]
+    ece = expected_calibration_error(np.c_[probs, np.zeros(len(probs))],
+                                     np.where(truth_cols >= 0, truth_cols, len(names)))
+    return {"balanced_accuracy": float(np.mean(recall)), "accuracy": float(correct.mean()),
+            "ece": ece, "n": len(y_names), "classes": classes, "recall": recall,
+            "confusion": confusion.tolist(), "names": list(names)}
+
+
+def validate(options: TrainOptions, progress: bool | str = False) -> dict:
+    """Trains on a split of the training data and returns held-out figures.
+
+    Held out: a grouped fifth of the real recordings (`grouped_split`), and simulated people
+    from another seed stream (gestures and, if trained, no-gesture poses).
+    """
+    x_real, y_real, names = load_real_features()
+    held, kept = grouped_split(x_real, y_real, 0.2, options.seed)
+    data = build_dataset(options, (x_real[kept], y_real[kept], names), user=[])
+    trained = fit(data, options, progress)
+    clf = classifier_of(trained)
+    rng = _rng(SIM_STREAM_VALIDATE, options.seed)
+    x_sim, y_sim = simulate_gestures(list(names), 150, rng)
+    out = {"real": evaluate(clf, x_real[held], [names[i] for i in y_real[held]]),
+           "simulated": evaluate(clf, x_sim, [names[i] for i in y_sim]),
+           "seconds": trained.seconds}
+    if options.none > 0:
+        out["none"] = evaluate(clf, simulate_none(300, list(names), rng), [NONE] * 300)
+    return out
+
+
+# --------------------------------------------------------------------------- CLI
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds the trainer's flags."""
+    d = TrainOptions()
+    parser.add_argument("--out", type=Path, default=None,
+                        help="model base path (.pt/.json) [data_dir()/models/static-gesture]")
+    parser.add_argument("--shipped", action="store_true",
+                        help="write the default model shipped in the package (no user gestures)")
+    parser.add_argument("--per-gesture", type=int, default=d.per_gesture,
+                        help=f"simulated renditions per gesture [{d.per_gesture}]")
+    parser.add_argument("--none", type=int, default=d.none,
+                        help=f"simulated no-gesture poses [{d.none}]")
+    parser.add_argument("--no-none", action="store_true", help="no no-gesture class")
+    parser.add_argument("--hidden", type=int, nargs="+", default=d.hidden,
+                        help=f"hidden layer sizes {d.hidden}")
+    parser.add_argument("--epochs", type=int, default=d.epochs, help=f"[{d.epochs}]")
+    parser.add_argument("--lr", type=float, default=d.lr, help=f"Adam learning rate [{d.lr}]")
+    parser.add_argument("--prior-sigma", type=float, default=d.prior_sigma,
+                        help=f"std of the Normal prior of every weight [{d.prior_sigma}]")
+    parser.add_argument("--seed", type=int, default=d.seed, help=f"[{d.seed}]")
+    parser.add_argument("--no-user-gestures", action="store_true",
+                        help="leave out the gestures recorded by demonstration")
+    parser.add_argument("--validate", action="store_true",
+                        help="first train on a split of the training data and print held-out "
+                             "figures")
+
+
+def options_from(args: argparse.Namespace) -> TrainOptions:
+    """Returns the training options of parsed flags."""
+    return TrainOptions(per_gesture=args.per_gesture, none=0 if args.no_none else args.none,
+                        hidden=list(args.hidden), epochs=args.epochs, lr=args.lr,
+                        prior_sigma=args.prior_sigma, seed=args.seed,
+                        user_gestures=not (args.no_user_gestures or args.shipped))
+
+
+def train_and_save(options: TrainOptions, out: Path, progress: bool | str = True
+                   ) -> tuple[Trained, str]:
+    """Builds the data set, trains, writes the model; returns it and its id."""
+    data = build_dataset(options)
+    trained = fit(data, options, progress)
+    _, _, model_id = save_model(out, trained)
+    return trained, model_id
+
+
+def _print_eval(title: str, fig: dict) -> None:
+    print(f"  {title}: balanced accuracy {fig['balanced_accuracy']:.2%}, ECE {fig['ece']:.4f} "
+          f"(n={fig['n']})")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Trains (optionally validates first) and writes the model; prints a summary."""
+    options = options_from(args)
+    out = args.out or (shipped_model_path() if args.shipped else user_model_path())
+    if args.validate:
+        print("validation on held-out training data (grouped real fifth, unseen simulated "
+              "people):")
+        fig = validate(options, progress="validation training")
+        _print_eval("real, held-out groups", fig["real"])
+        _print_eval("simulated, unseen people", fig["simulated"])
+        if "none" in fig:
+            _print_eval("no-gesture poses", fig["none"])
+    t0 = time.perf_counter()
+    trained, model_id = train_and_save(options, out, progress="training static-gesture")
+    summary = trained.metadata["dataset"]
+    print(f"trained {model_id} on {summary['rows']} rows "
+          f"({', '.join(f'{k} {v}' for k, v in summary['per_source'].items() if v)}); "
+          f"classes: {', '.join(trained.metadata['names'])}")
+    print(f"network {len(INPUTS)} → {' → '.join(map(str, options.hidden))} → "
+          f"{len(trained.metadata['names'])}, {options.epochs} epochs, final -ELBO/row "
+          f"{trained.history[-1]:.4f}; {time.perf_counter() - t0:.1f} s in all "
+          f"({trained.seconds:.1f} s training)")
+    print(f"wrote {Path(out).with_suffix('.pt')} and .json")
+    return 0

@@ -1,0 +1,84 @@
+"""Correct the last intent: tell the intent service what you meant, so it learns your gestures.
+
+Publishes ``cbgo/intent/feedback``. Unless ``--episode`` and ``--user`` are both given, the
+intent service is asked for its last intent (control verb ``@ctl/intent/last``, of ``--user``
+if given) and that one is corrected. The intent service stores the correction for that user and
+refits the user's model (see services/intent/README.md, "Personalisation").
+
+Examples::
+
+    cbgo feedback --action move_right                 # the last intent was meant as move_right
+    cbgo feedback --action pick_up --object cup2
+    cbgo feedback --action place --user alice --episode ep-0042
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from cbgo import keys as topics
+from cbgo import wire
+from cbgo.cli.common import add_network_arguments, fail, session
+from cbgo.codec import unpack_any
+from cbgo.errors import RejectedMessage
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds feedback's flags."""
+    parser.add_argument("--action", required=True, choices=wire.ACTIONS,
+                        help="the action you meant")
+    parser.add_argument("--object", default=None, help="the object you meant (if it matters)")
+    parser.add_argument("--user", default=None, help="who corrects [the last intent's user]")
+    parser.add_argument("--episode", default=None,
+                        help="the episode to correct [the last intent's]")
+    parser.add_argument("--timeout", type=float, default=5.0,
+                        help="seconds to wait for the intent service [5]")
+    add_network_arguments(parser)
+
+
+def _last(sess, keys, user: str | None, timeout: float) -> dict:
+    payload = wire.encode({"v": wire.SCHEMA_VERSION, **({"user": user} if user else {})})
+    for reply in sess.get(keys.ctl("intent", "last"), payload=payload, timeout=timeout):
+        if reply.ok is not None:
+            return unpack_any(reply.ok.payload.to_bytes())
+        print(f"cbgo: intent: {reply.err.payload.to_bytes().decode('utf-8', 'replace')}",
+              file=sys.stderr)
+    fail("the intent service did not answer @ctl/intent/last; is it running? (or give "
+         "--user and --episode)")
+    return {}
+
+
+def run(args: argparse.Namespace) -> int:
+    """Publishes the correction; returns 0, or 1 when there is nothing to correct."""
+    import zenoh
+
+    with session(args, "cbgo-feedback") as (sess, keys):
+        user, episode = args.user, args.episode
+        if user is None or episode is None:
+            last = _last(sess, keys, user, args.timeout)
+            if not last.get("intent"):
+                fail("the intent service has no intent to correct yet")
+            user = user or last["user"]
+            episode = episode if episode is not None else last.get("episode")
+            shown = last["intent"]
+            print(f"correcting {shown.get('action')}({shown.get('object')}) of {user}"
+                  + (f", episode {episode}" if episode else ""))
+        message = {"v": wire.SCHEMA_VERSION, "ts": time.time(), "episode": episode,
+                   "user": user, "action": args.action, "object": args.object}
+        key = keys.of(topics.INTENT_FEEDBACK)
+        try:
+            wire.validate(message, wire.INTENT_FEEDBACK, key)
+        except RejectedMessage as e:
+            fail(str(e), 2)
+        pub = sess.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
+        deadline = time.monotonic() + args.timeout
+        while not pub.matching_status.matching and time.monotonic() < deadline:
+            time.sleep(0.01)
+        if not pub.matching_status.matching:
+            fail(f"no subscriber on {key}: is the intent service running?")
+        pub.put(wire.encode(message))
+        time.sleep(0.1)  # let the put leave before the session closes
+    print(f"sent: {args.action}" + (f"({args.object})" if args.object else "") + f" for {user}")
+    return 0

@@ -1,0 +1,94 @@
+"""intent through real processes: infer queries and their error replies, summary -> intent,
+and `cbgo feedback` correcting the last intent."""
+
+import subprocess
+import sys
+import threading
+import time
+
+from cbgo import wire
+from cbgo.examples import example
+
+CLI = [sys.executable, "-m", "cbgo.cli.main"]
+
+
+class Collector:
+    """Collects decoded messages on a key from the test's own session."""
+
+    def __init__(self, stack, suffix):
+        self.items, self.lock = [], threading.Lock()
+        self._sub = stack.session().declare_subscriber(stack.keys.resolve(suffix), self._on)
+
+    def _on(self, sample):
+        with self.lock:
+            self.items.append(wire.decode(sample.payload.to_bytes()))
+
+    def wait(self, predicate, timeout=20.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self.lock:
+                found = [m for m in self.items if predicate(m)]
+            if found:
+                return found
+            time.sleep(0.05)
+        raise AssertionError(f"no matching message within {timeout} s")
+
+
+def put(stack, suffix, message):
+    pub = stack.session().declare_publisher(stack.keys.resolve(suffix))
+    deadline = time.monotonic() + 5
+    while not pub.matching_status.matching and time.monotonic() < deadline:
+        time.sleep(0.01)
+    pub.put(wire.encode(message))
+
+
+def start_intent(stack, tmp_path):
+    stack.start_router()
+    stack.start_service("intent", env={"CBGO_DATA_DIR": str(tmp_path / "data")})
+    stack.wait_alive(["router", "intent"], timeout=60)
+
+
+def test_infer_answers_valid_queries_and_gives_error_replies_to_bad_ones(stack, tmp_path):
+    start_intent(stack, tmp_path)
+    (ok, reply), = stack.query("cbgo/intent/infer", example("intent/infer", "query"))
+    assert ok, reply
+    wire.validate(reply, wire.INTENT, "cbgo/intent/infer")
+    assert (reply["action"], reply["object"], reply["status"]) == ("pick_up", "cup1", "accepted")
+    malformed = example("intent/infer", "query")
+    del malformed["scene"]
+    (ok, reason), = stack.query("cbgo/intent/infer", malformed)
+    assert not ok and "scene: missing required field" in reason
+    (ok, reason), = stack.query("cbgo/intent/infer", None)
+    assert not ok and "rejected" in reason
+    unknown = example("intent/infer", "query", gestures={"names": ["wave"], "probs": [1.0]})
+    (ok, reason), = stack.query("cbgo/intent/infer", unknown)
+    assert not ok and "none of the model's gestures" in reason
+    status = stack.status("intent")
+    assert status["counters"]["rejected"] == 2 and status["model"] == "intent-ours-1"
+
+
+def test_a_summary_becomes_an_intent_and_cbgo_feedback_corrects_it(stack, tmp_path):
+    start_intent(stack, tmp_path)
+    intents = Collector(stack, "intent")
+    put(stack, "scene/state", example("scene/state"))
+    summary = example("episode/summary", episode="ep-7", user="carol",
+                      gestures={"names": ["swipe_left"], "probs": [0.95]})
+    deadline = time.monotonic() + 10
+    while stack.status("intent").get("has_scene") is not True:
+        assert time.monotonic() < deadline, "the scene never arrived"
+        time.sleep(0.05)
+    put(stack, "episode/summary", summary)
+    (intent,) = intents.wait(lambda m: m["episode"] == "ep-7")
+    assert (intent["action"], intent["status"]) == ("move_left", "accepted")
+    done = subprocess.run([*CLI, "feedback", "--action", "move_right", "--connect",
+                           stack.endpoint], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert "correcting move_left(None) of carol, episode ep-7" in done.stdout
+    folder = tmp_path / "data" / "intent" / "carol"
+    deadline = time.monotonic() + 30
+    while not (folder / "model.json").exists():
+        assert time.monotonic() < deadline, stack.logs(["intent"])
+        time.sleep(0.1)
+    put(stack, "episode/summary", {**summary, "episode": "ep-8"})
+    (again,) = intents.wait(lambda m: m["episode"] == "ep-8", timeout=30)
+    assert (again["action"], again["model"]) == ("move_right", "intent-ours-1+carol")

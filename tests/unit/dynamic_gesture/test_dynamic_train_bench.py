@@ -1,0 +1,49 @@
+"""Training and benchmark plumbing on a tiny simulated data set (the real runs are CLI verbs)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from cbgo.services.dynamic_gesture import bench, simdata, train
+from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, read_default, save_default
+from cbgo.wire import DYNAMIC_GESTURES
+
+
+@pytest.fixture(scope="module")
+def one_user():
+    return simdata.run_user(7, simdata.TRAIN, reps=1)
+
+
+def test_a_simulated_user_gives_labelled_windows_for_every_stroke(one_user):
+    assert sorted(g for g, _, _ in one_user.strokes) == sorted(DYNAMIC_GESTURES)
+    assert one_user.missed == []
+    finals = [lw.truth for lw in one_user.windows if lw.window.final]
+    assert sorted(t for t in finals if t != "none") == sorted(DYNAMIC_GESTURES)
+
+
+def test_templates_and_calibration_learned_from_a_tiny_set_load_and_classify(one_user,
+                                                                            tmp_path):
+    templates = train.learn_templates([one_user])
+    assert [t.name for t in templates] == list(DYNAMIC_GESTURES)
+    classifier = Library(DEFAULT_PATH, None).load().classifier()
+    feats, labels = train.labelled_features(classifier, [one_user])
+    calibration = train.fit_calibration(feats, labels)
+    assert np.isfinite(calibration.theta).all()
+    path = tmp_path / "tiny.json"
+    save_default(path, templates, calibration, {"roll_scale_mm_per_rad": 100.0}, {"users": 1})
+    loaded, _, data = read_default(path)
+    assert [t.name for t in loaded] == list(DYNAMIC_GESTURES)
+    assert json.loads(path.read_text())["training"] == {"users": 1} == data["training"]
+
+
+def test_the_benchmark_scores_final_windows_and_counts_missed_strokes(one_user):
+    classifier = Library(DEFAULT_PATH, None).load().classifier()
+    figures = bench.score(classifier, [one_user], [])
+    final = figures["final"]
+    assert final["true_strokes"] == 5 and final["missed_strokes"] == 0
+    assert final["balanced_accuracy"] > 0.9
+    assert np.asarray(final["confusion"]).sum() == final["samples"]
+    cost = bench.cost(classifier, [lw.window for lw in one_user.windows if lw.window.final],
+                      limit=3)
+    assert cost["classify_ms_median"] > 0 and cost["templates"] == 5

@@ -1,0 +1,128 @@
+"""The static-gesture trainer: data set, user gestures, atomic saving, grouped validation split."""
+
+import json
+
+import numpy as np
+import pytest
+
+from cbgo.hands.data import load_real_features
+from cbgo.services.static_gesture import train
+from cbgo.services.static_gesture.classifier import StaticClassifier
+from cbgo.wire import STATIC_GESTURES
+
+
+def small_real(n=240):
+    x, y, names = load_real_features()
+    return x[:n], y[:n], names
+
+
+def take(user="alice", count=5):
+    return {"user": user, "ts": 1.0, "time": "2025-01-01T00:00:00Z", "count": count,
+            "device": "sim"}
+
+
+def test_the_data_set_holds_real_simulated_no_gesture_and_user_rows_in_name_order(tmp_path):
+    rng = np.random.default_rng(0)
+    horns = train.UserGesture("horns", rng.normal(0, 1, (5, 57)), [take()])
+    grab = train.UserGesture("grab", rng.normal(0, 1, (400, 57)), [take(count=400)])
+    options = train.TrainOptions(per_gesture=3, none=10)
+    data = train.build_dataset(options, small_real(), user=[horns, grab])
+    assert data.names == [*STATIC_GESTURES, "horns", "none"]
+    summary = data.summary()
+    assert summary["per_source"] == {"real": 240, "simulated": 24, "none": 10,
+                                     "user": train.USER_MIN_ROWS + 400}
+    assert summary["per_class"]["horns"] == train.USER_MIN_ROWS  # augmented
+    assert (data.y[data.source == "none"] == data.names.index("none")).all()
+    assert {g["name"] for g in data.user_gestures} == {"horns", "grab"}
+
+
+def test_without_the_no_gesture_class_there_is_no_none_name():
+    data = train.build_dataset(train.TrainOptions(per_gesture=2, none=0), small_real(), user=[])
+    assert data.names == list(STATIC_GESTURES) and "none" not in data.source
+
+
+def test_simulation_is_reproducible_and_never_shares_people_between_streams():
+    a = train.simulate_gestures(["grab"], 4, train._rng(train.SIM_STREAM_TRAIN, 0))[0]
+    b = train.simulate_gestures(["grab"], 4, train._rng(train.SIM_STREAM_TRAIN, 0))[0]
+    c = train.simulate_gestures(["grab"], 4, train._rng(train.SIM_STREAM_BENCH, 0))[0]
+    assert np.array_equal(a, b) and not np.allclose(a, c)
+    assert train.simulate_none(6, ["five"], np.random.default_rng(1)).shape == (6, 57)
+
+
+def test_a_recorded_gesture_accumulates_takes_with_their_attribution(tmp_path):
+    train.store_gesture("horns", np.zeros((3, 57)), take("alice", 3), tmp_path)
+    path = train.store_gesture("horns", np.ones((2, 57)), take("bob", 2), tmp_path)
+    g = train.read_gesture(path)
+    assert g.name == "horns" and g.x.shape == (5, 57)
+    assert [t["user"] for t in g.takes] == ["alice", "bob"]
+    train.store_gesture("horns", np.ones((4, 57)), take("carol", 4), tmp_path, replace=True)
+    (g,) = train.load_user_gestures(tmp_path)
+    assert g.x.shape == (4, 57) and [t["user"] for t in g.takes] == ["carol"]
+    assert not list(tmp_path.glob("tmp-*"))
+
+
+def test_a_recording_of_another_feature_version_is_skipped_with_a_note(tmp_path, capsys):
+    np.savez(tmp_path / "old.npz", X=np.zeros((2, 57)),
+             meta=np.array(json.dumps({"name": "old", "feature_version": 0})))
+    assert train.load_user_gestures(tmp_path) == []
+    assert "record it again" in capsys.readouterr().out
+
+
+def test_augmentation_jitters_few_rows_up_to_the_minimum():
+    x = np.tile(np.linspace(0, 1, 57), (4, 1))
+    out = train.augment(x, 50, np.random.default_rng(0))
+    assert out.shape == (50, 57) and np.array_equal(out[:4], x)
+    assert 0 < np.abs(out[4:] - x[0]).mean() < 3.0
+    assert train.augment(x, 2, np.random.default_rng(0)) is x
+
+
+def test_a_saved_model_is_written_atomically_and_pinned_by_its_weights(tmp_path):
+    options = train.TrainOptions(per_gesture=2, none=8, hidden=[4], epochs=2)
+    trained = train.fit(train.build_dataset(options, small_real(), user=[]), options)
+    pt, js, model_id = train.save_model(tmp_path / "models" / "m.pt", trained)
+    assert sorted(p.name for p in (tmp_path / "models").iterdir()) == ["m.json", "m.pt"]
+    meta = json.loads(js.read_text())
+    assert meta["model_id"] == model_id and model_id == "static-bnn-" + meta["weights_sha256"][:8]
+    assert meta["train"]["epochs"] == 2 and meta["options"]["none"] == 8
+    clf = StaticClassifier.load(pt)
+    assert clf.model_id == model_id
+    fresh = train.classifier_of(trained)
+    x = small_real(5)[0]
+    assert np.allclose(clf.predict_features(x), fresh.predict_features(x))
+
+
+def test_the_grouped_split_holds_out_whole_clusters_of_every_gesture():
+    x, y, _ = load_real_features()
+    held, kept = train.grouped_split(x, y, 0.2, seed=0)
+    assert not set(held) & set(kept) and len(held) + len(kept) == len(y)
+    assert set(np.unique(y[held])) == set(range(8))
+    assert 0.1 < len(held) / len(y) < 0.3
+
+
+def test_evaluation_counts_a_name_the_model_lacks_as_wrong(tmp_path):
+    options = train.TrainOptions(per_gesture=0, none=0, hidden=[4], epochs=1)
+    clf = train.classifier_of(train.fit(train.build_dataset(options, small_real(), user=[]),
+                                        options))
+    fig = train.evaluate(clf, np.zeros((2, 57)), ["unknown", "unknown"])
+    assert fig["balanced_accuracy"] == 0.0 and fig["classes"] == ["unknown"]
+
+
+def test_the_trainer_cli_writes_the_model_where_asked(tmp_path, capsys):
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    train.add_arguments(parser)
+    args = parser.parse_args(["--out", str(tmp_path / "m"), "--per-gesture", "2", "--none", "5",
+                              "--epochs", "1", "--hidden", "4", "--no-user-gestures"])
+    assert train.run(args) == 0
+    printed = capsys.readouterr().out
+    assert "trained static-bnn-" in printed and (tmp_path / "m.pt").is_file()
+
+
+@pytest.mark.parametrize("flags,expected", [(["--no-none"], 0), ([], train.TrainOptions().none)])
+def test_no_none_turns_the_no_gesture_class_off(flags, expected):
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    train.add_arguments(parser)
+    assert train.options_from(parser.parse_args(flags)).none == expected
