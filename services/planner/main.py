@@ -37,6 +37,9 @@ def _help(text: str) -> dict:
     return {"help": text}
 
 
+FRESH_SCENE_S = 1.0  # how long an intent waits for a scene newer than itself
+
+
 @dataclass
 class PlannerSettings:
     """Settings of the planner (flags ``--tick-hz`` ... or env ``CBGO_TICK_HZ`` ...)."""
@@ -260,9 +263,13 @@ class Planner(Service):
             intent = self._waiting[0] if self._waiting else None
         if intent is None:
             return []
-        if not self.scenes.ready:
+        waited = self._scene_wait_ticks / self.settings.tick_hz
+        # Plan on a scene at least as new as the intent (the world may have changed since the
+        # last scene: a reset, another client's action), unless none comes within FRESH_SCENE_S.
+        stale = self.scenes.ts < intent["ts"] and waited < FRESH_SCENE_S
+        if not self.scenes.ready or stale:
             self._scene_wait_ticks += 1
-            if self._scene_wait_ticks / self.settings.tick_hz < self.settings.scene_timeout_s:
+            if waited < self.settings.scene_timeout_s:
                 return []
         with self._lock:
             if not self._waiting or self._waiting[0] is not intent:

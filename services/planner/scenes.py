@@ -38,6 +38,11 @@ class SceneSource:
         """Whether any scene is known."""
         return self._parsed is not None or self._message is not None
 
+    @property
+    def ts(self) -> float:
+        """Time stamp of the newest scene taken (-inf before the first)."""
+        return self._ts
+
     def scene(self) -> Scene:
         """Returns the current scene (do not mutate it).
 

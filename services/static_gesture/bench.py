@@ -22,7 +22,9 @@ Figures (goals from issue 4 in brackets):
 4. **Latency** through Zenoh: a router, leap-bridge (``static-all`` looping at ``--rate-hz``)
    and static-gesture as real processes; frame ``ts`` (stamped by leap-bridge just before it
    publishes, carried into ``gestures/static``) to the arrival of the gesture message at the
-   benchmark's own subscriber, same machine clock: p50/p99/max [p99 ≤ 5 ms].
+   benchmark's own subscriber, same machine clock: p50/p99/max [p99 ≤ 5 ms]; alongside, the
+   same frames' arrival straight from leap-bridge (one hop, no classification): the floor
+   that the machine, Python and Zenoh set.
 
 Examples::
 
@@ -208,39 +210,56 @@ def _handler_clock(hands: list[dict], model_path: Path, samples: int) -> _Clock:
 
 
 def latency(model_path: Path, seconds: float, rate_hz: float, samples: int) -> dict:
-    """Frame ts → gestures/static arrival through a router, leap-bridge and static-gesture."""
+    """Frame ts → gestures/static arrival through a router, leap-bridge and static-gesture.
+
+    The same frames' own arrival (leap-bridge → router → here, no classification) is measured
+    alongside, as the floor the machine and Zenoh set.
+    """
     from cbgo.testing import Stack
 
-    delays: list[float] = []
+    delays: dict[str, list[float]] = {"gestures": [], "frames": []}
     lock = threading.Lock()
 
-    def on_sample(sample) -> None:
-        now = time.time()
-        msg = wire.decode(sample.payload.to_bytes())
-        with lock:
-            delays.append(now - msg["ts"])
+    def collect(name: str, hands_only: bool):
+        def on_sample(sample) -> None:
+            now = time.time()
+            msg = wire.decode(sample.payload.to_bytes())
+            if hands_only and not msg["hands"]:
+                return
+            with lock:
+                delays[name].append(now - msg["ts"])
+        return on_sample
 
     with tempfile.TemporaryDirectory() as tmp, Stack(Path(tmp)) as stack:
         stack.start_router()
         stack.start_service("static-gesture", "--model", str(model_path), "--samples",
                             str(samples))
         stack.wait_alive(["router", "static-gesture"], timeout=60)
-        stack.session().declare_subscriber(stack.keys.of(keys.GESTURES_STATIC), on_sample)
+        session = stack.session()
+        session.declare_subscriber(stack.keys.of(keys.GESTURES_STATIC),
+                                   collect("gestures", False))
+        session.declare_subscriber(stack.keys.of(keys.HANDS_FRAME), collect("frames", True))
         stack.start_service("leap-bridge", "--scenario", "static-all", "--loop", "--rate-hz",
                             str(rate_hz), "--wait-for", "static-gesture")
         stack.wait_alive(["leap-bridge"], timeout=60)
         time.sleep(2.0)  # past the first pause, with hands in view
         with lock:
-            delays.clear()
+            for values in delays.values():
+                values.clear()
         time.sleep(seconds)
         with lock:
-            got = np.array(delays) * 1e3
+            got = {name: np.array(values) * 1e3 for name, values in delays.items()}
         status = stack.status("static-gesture")
-    if not len(got):
+    if not len(got["gestures"]):
         return {"messages": 0}
-    return {"messages": int(len(got)), "rate_hz": rate_hz, "seconds": seconds,
-            "p50_ms": float(np.percentile(got, 50)), "p99_ms": float(np.percentile(got, 99)),
-            "max_ms": float(got.max()), "dropped": status["counters"]["dropped"]}
+    out = {"messages": int(len(got["gestures"])), "rate_hz": rate_hz, "seconds": seconds,
+           "dropped": status["counters"]["dropped"]}
+    for name, prefix in (("gestures", ""), ("frames", "bridge_only_")):
+        if len(got[name]):
+            out.update({f"{prefix}p50_ms": float(np.percentile(got[name], 50)),
+                        f"{prefix}p99_ms": float(np.percentile(got[name], 99)),
+                        f"{prefix}max_ms": float(got[name].max())})
+    return out
 
 
 # --------------------------------------------------------------------------- report
@@ -289,6 +308,10 @@ def _print(fig: dict) -> None:
         print(f"latency frame → gestures/static through Zenoh ({lat['messages']} messages at "
               f"{lat['rate_hz']:g} Hz): p50 {lat['p50_ms']:.2f} ms, p99 {lat['p99_ms']:.2f} ms, "
               f"max {lat['max_ms']:.2f} ms; dropped {lat['dropped']}")
+        if "bridge_only_p50_ms" in lat:
+            print(f"  floor: the same frames straight from leap-bridge (one hop, no "
+                  f"classification): p50 {lat['bridge_only_p50_ms']:.2f} ms, p99 "
+                  f"{lat['bridge_only_p99_ms']:.2f} ms, max {lat['bridge_only_max_ms']:.2f} ms")
     print("\ngoals:")
     for name, ok, text in _goals(fig):
         print(f"  {'PASS' if ok else ('----' if ok is None else 'MISS')}  {name}: {text}")

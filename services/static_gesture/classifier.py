@@ -6,9 +6,10 @@ Rules (the model files are written by ``cbgo.services.static_gesture.train``):
   ``<base>.json`` (metadata). The metadata names everything needed to use it — the gesture
   ``names`` (output order, possibly with the no-gesture class ``none``), the ``inputs`` (which of
   the 57 features feed the network), the ``standardizer``, the ``feature_version`` — and pins
-  the weights by their SHA-256 (``weights_sha256``). Loading checks all of it and refuses a
-  model that does not fit (`ConfigError` naming the problem); the pin also catches a ``.pt`` and
-  a ``.json`` from two different trainings, e.g. read while a trainer is replacing them.
+  the weights by their SHA-256 (``weights_sha256``, over the tensors, not the file). Loading
+  checks all of it and refuses a model that does not fit (`ConfigError` naming the problem);
+  the pin also catches a ``.pt`` and a ``.json`` from two different trainings, e.g. read while a
+  trainer is replacing them.
 - The model id is ``static-bnn-<first 8 hex of weights_sha256>``: the same weights give the same
   id on every machine.
 - Features: ``cbgo.hands.features.hands_features(hands, to_recorded_side=True)``, so a right
@@ -19,9 +20,9 @@ Rules (the model files are written by ``cbgo.services.static_gesture.train``):
   posterior q(w) (seeded by the weights' hash, so the same model gives the same draws) and kept
   as stacked numpy arrays; a prediction is the mean of the softmax over those networks. Fixed
   draws make a frame's probabilities reproducible (the same hand twice gives the same vector)
-  and keep the per-frame cost to a few stacked matrix products (~35 µs for 32 draws, measured
-  by ``cbgo bench static``) instead of torch's per-call overhead. Every row is renormalised in
-  float64 so that it sums to 1 to rounding.
+  and keep the per-frame cost to a few matrix products (tens of µs for 32 draws on one frame;
+  ``cbgo bench static`` prints the network's share) instead of torch's per-call overhead.
+  Every row is renormalised in float64 so that it sums to 1 to rounding.
 - Nothing here touches Zenoh; the service (``main``) wires it to the bus.
 """
 
@@ -93,9 +94,18 @@ def file_stamps(path: str | Path) -> tuple:
     return tuple(out)
 
 
-def sha256_file(path: Path) -> str:
-    """Returns the hex SHA-256 of a file."""
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+def weights_sha256(state_dict: dict) -> str:
+    """Returns the hex SHA-256 of a network's weights: names, dtypes, shapes and values.
+
+    Computed on the tensors, not on the ``.pt`` file (whose zip records the file's own name),
+    so that the same weights have the same hash wherever and however they were saved.
+    """
+    h = hashlib.sha256()
+    for name in sorted(state_dict):
+        tensor = state_dict[name].detach().cpu().contiguous()
+        h.update(f"{name}:{tensor.dtype}:{tuple(tensor.shape)};".encode())
+        h.update(tensor.numpy().tobytes())
+    return h.hexdigest()
 
 
 def model_id_of(weights_sha256: str) -> str:
@@ -215,11 +225,7 @@ class StaticClassifier:
         meta = loaded.metadata
         if meta.get("kind") != KIND:
             raise ConfigError(f"{js} is not a {KIND} model (kind {meta.get('kind')!r})")
-        try:
-            actual = sha256_file(pt)
-        except OSError as e:
-            raise ConfigError(f"cannot read {pt}: {e}") from None
-        if meta.get("weights_sha256") != actual:
+        if meta.get("weights_sha256") != weights_sha256(loaded.model.state_dict()):
             raise ConfigError(f"{pt} is not the weights file {js} was written with (SHA-256 "
                               "mismatch; being rewritten? retrain with `cbgo train static`)")
         try:

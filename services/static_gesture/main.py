@@ -76,7 +76,10 @@ class StaticGesture(Service):
         self.hands = 0
 
     def setup(self, ctx) -> None:
-        """Loads the model (a broken one stops the start), declares inputs, outputs, reload."""
+        """Called once before the service is announced alive: loads the model, declares I/O.
+
+        A model that does not load raises `ConfigError` (the process exits with code 2).
+        """
         self.ctx = ctx
         path = self.model_path()
         stamps = file_stamps(path)
@@ -99,7 +102,7 @@ class StaticGesture(Service):
         self.classifier, self._watched, self._stamps = classifier, path, stamps
 
     def on_hands_frame(self, msg: dict) -> list:
-        """Returns one gestures/static message per hand of the frame."""
+        """Called for each valid hands/frame: returns one gestures/static message per hand."""
         hands = msg["hands"]
         if not hands:
             return []
@@ -118,7 +121,11 @@ class StaticGesture(Service):
             for hand, row, good in zip(hands, probs, ok, strict=True) if good]
 
     def on_reload(self, query: dict) -> dict:
-        """Control verb: load the model again (or ``{model: PATH}``); keep the old on failure."""
+        """Called for each ``reload`` query: loads the model again (or ``{model: PATH}``).
+
+        Raises:
+            QueryError: the model does not load; the old one keeps serving.
+        """
         requested = query.get("model")
         if requested is not None and not (isinstance(requested, str) and requested):
             raise QueryError("model must be a path string")
@@ -138,7 +145,7 @@ class StaticGesture(Service):
                 "previous": previous, "path": str(path), "names": classifier.names}
 
     def on_watch(self) -> None:
-        """Timer: loads the model again if its files changed (or the default path moved)."""
+        """Called every ``--watch-s`` s: reloads the model if its files changed or moved."""
         path = self.model_path()
         stamps = file_stamps(path)
         if path == self._watched and stamps == self._stamps:
@@ -163,6 +170,7 @@ class StaticGesture(Service):
 
 
 main = main_for(StaticGesture)
+
 
 if __name__ == "__main__":
     main()

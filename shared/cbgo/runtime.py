@@ -20,6 +20,7 @@ same dispatch code without a network.
 
 from __future__ import annotations
 
+import gc
 import heapq
 import logging
 import os
@@ -578,6 +579,11 @@ def _serve_forever(service_cls: type[Service], resolved: Resolved, log) -> int:
             service.setup(ctx)
             if stop.is_set():
                 return EXIT_OK
+            # What imports and setup created (torch, numpy, models: ~10^5 objects) lives as long
+            # as the process. Freezing it keeps the cyclic GC's full passes off it: measured in
+            # static-gesture, such a pass stalled a frame by 80-200 ms (p99 latency 150 ms).
+            gc.collect()
+            gc.freeze()
             token = session.liveliness().declare_token(ctx.keys.alive(service.name))
             log.info("ready", extra=kv(zid=str(session.zid()), inputs=ctx.inputs,
                                        outputs=ctx.outputs, queryables=ctx.queryables))

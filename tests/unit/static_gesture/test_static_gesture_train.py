@@ -126,3 +126,10 @@ def test_no_none_turns_the_no_gesture_class_off(flags, expected):
     parser = argparse.ArgumentParser()
     train.add_arguments(parser)
     assert train.options_from(parser.parse_args(flags)).none == expected
+
+
+def test_the_same_training_gives_the_same_model_id_wherever_it_is_saved(tmp_path):
+    options = train.TrainOptions(per_gesture=2, none=4, hidden=[4], epochs=1)
+    ids = [train.save_model(tmp_path / name, train.fit(
+        train.build_dataset(options, small_real(), user=[]), options))[2] for name in "ab"]
+    assert ids[0] == ids[1]
