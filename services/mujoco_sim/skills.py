@@ -47,6 +47,8 @@ MAX_POUR_DEG = 135.0
 HANDLE_HALF_WIDTH = 0.012
 HAND_BOTTOM = 0.045  # m from the TCP up to the underside of the hand
 HAND_HALF = (0.035, 0.105)  # m, the hand's half extents across and along the fingers' axis
+RELEASE_LIFTS = (0.0, 0.005, 0.01, 0.015, 0.02, 0.03)  # m above the goal a load may be let go
+SLIDE_MARGIN = 0.002  # m between a pad and a load that slides down between the pads
 
 
 class ActionError(Exception):
@@ -270,9 +272,18 @@ class Robot:
         yaw_now = math.atan2(r_tcp[1, 0], r_tcp[0, 0])
         rot, pos = self._best_pose(yaw_candidates(item, sim, yaw_now),
                                    lambda r: np.asarray(goal) - r @ obj_in_tcp, release,
-                                   approach=0.1, lifts=(0.0, 0.01, 0.02))
+                                   approach=0.1, lifts=RELEASE_LIFTS)
         motion.travel(sim, pos, rot, travel_height(sim, item), fold=False)
         sim.detach()
+        if not sim.touching(item.geoms, surface):
+            # It must drop (the hand cannot go lower): open just enough for it to slide down
+            # between the pads, which keep it upright, until it stands on the surface.
+            motion.gripper(sim, finger_for_width(grasp_half_width(item) + SLIDE_MARGIN), 0.3)
+            for _ in range(int(0.4 / motion.tick_dt(sim))):
+                if sim.touching(item.geoms, surface):
+                    break
+                sim.tick()
+            motion.pause(sim, 0.1)
         motion.gripper(sim, release, 0.3)
         motion.pause(sim, 0.1)
         up = max(travel_height(sim, None), pos[2] + 0.08)
