@@ -48,6 +48,9 @@ HANDLE_HALF_WIDTH = 0.012
 HAND_BOTTOM = 0.045  # m from the TCP up to the underside of the hand
 HAND_HALF = (0.035, 0.105)  # m, the hand's half extents across and along the fingers' axis
 RELEASE_LIFTS = (0.0, 0.005, 0.01, 0.015, 0.02, 0.03)  # m above the goal a load may be let go
+LOWER_SPEED = 0.03  # m/s while lowering a held load onto its support
+REST_SPEED = 0.01  # m/s (and rad/s) under which a released load counts as at rest
+REST_TIMEOUT_S = 1.5  # s at most to wait for a released load to come to rest
 SLIDE_MARGIN = 0.002  # m between a pad and a load that slides down between the pads
 
 
@@ -274,6 +277,12 @@ class Robot:
                                    lambda r: np.asarray(goal) - r @ obj_in_tcp, release,
                                    approach=0.1, lifts=RELEASE_LIFTS)
         motion.travel(sim, pos, rot, travel_height(sim, item), fold=False)
+        base_z = (np.asarray(goal) - rot @ obj_in_tcp)[2]
+        pos = self._lower_until_contact(item, surface, pos, rot, pos[2] - base_z + 0.008)
+        if sim.touching(item.geoms, surface):
+            # It stands on its support: open while still welded, so that the pads (pressed
+            # into the load by the grasp) cannot push it aside as they part.
+            motion.gripper(sim, release, 0.6)
         sim.detach()
         if not sim.touching(item.geoms, surface):
             # It must drop (the hand cannot go lower): open just enough for it to slide down
@@ -284,11 +293,56 @@ class Robot:
                     break
                 sim.tick()
             motion.pause(sim, 0.1)
-        motion.gripper(sim, release, 0.3)
+        motion.gripper(sim, release, 0.6)
         motion.pause(sim, 0.1)
+        # Leave straight up and slowly through the first centimetres, so that the pads do not
+        # drag the load along; then wait (bounded) until it is at rest before it is checked.
+        motion.line(sim, [pos[0], pos[1], pos[2] + 0.03], rot, speed=motion.SLOW)
         up = max(travel_height(sim, None), pos[2] + 0.08)
         motion.line(sim, [pos[0], pos[1], up], rot)
-        motion.pause(sim, 0.1)
+        self._wait_rest(held, REST_TIMEOUT_S)
+
+    def _lower_until_contact(self, item, surface: list[int], pos, rot, max_drop: float):
+        """Lowers the hand (still welded to its load) until the load touches `surface`.
+
+        Goes down at most `max_drop` m, slowly, and stops at the first contact or when the
+        hand no longer follows (blocked). Returns the TCP position where it stopped.
+        """
+        sim = self.sim
+        pos = np.asarray(pos, float)
+        if max_drop <= 0 or sim.touching(item.geoms, surface):
+            return pos
+        dt = motion.tick_dt(sim)
+        step = LOWER_SPEED * dt
+        q = sim.q_cmd
+        target = pos.copy()
+        for _ in range(int(max_drop / step) + 1):
+            if sim.touching(item.geoms, surface):
+                break
+            tcp, _ = sim.tcp()
+            if target[2] - tcp[2] < -0.004:  # the hand lags behind its command: blocked
+                break
+            target = target - [0.0, 0.0, step]
+            q = sim.ik.solve(target, rot, q, iterations=8).q
+            sim.set_arm(q)
+            sim.tick()
+        tcp, _ = sim.tcp()
+        sim.set_arm(sim.ik.solve(tcp, rot, q, iterations=50).q)  # hold where it is
+        sim.moving = False
+        motion.pause(sim, 0.05)
+        return np.array([pos[0], pos[1], sim.tcp()[0][2]])
+
+    def _wait_rest(self, name: str, timeout_s: float) -> None:
+        """Ticks until `name` is at rest (slow for a few ticks in a row), at most timeout_s."""
+        sim = self.sim
+        body = sim.items[name].body
+        calm = 0
+        for _ in range(max(1, int(timeout_s / motion.tick_dt(sim)))):
+            speed = float(np.linalg.norm(sim.data.cvel[body]))
+            calm = calm + 1 if speed < REST_SPEED else 0
+            if calm >= 5:
+                return
+            sim.tick()
 
     def _place(self, _obj, params: dict, scene: Scene) -> str | None:
         sim = self.sim

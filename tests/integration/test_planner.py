@@ -111,7 +111,8 @@ def test_the_paper_example_runs_on_a_symbolic_robot_process(stack):
         time.sleep(0.05)  # `cbgo plan show` says so once it has subscribed
     put(stack, "intent", intent("put_into", "drawer1"))
     end = plans.wait(lambda m: m["state"] != "running", timeout=30)
-    assert (end["state"], end["error"]) == ("success", None), (end["sequence"], stack.logs(["planner", "mujoco-sim"]))
+    assert (end["state"], end["error"]) == ("success", None), (
+        end["sequence"], stack.logs(["planner", "mujoco-sim"]))
     assert steps(end) == PAPER_SEQUENCE
     assert show.wait(10) == 0, show.log()
     assert "plan put_into(drawer1): " in show.log()
@@ -166,7 +167,8 @@ def test_the_paper_example_in_mujoco_ends_with_the_cup_in_the_drawer(stack):
     reset(stack, PAPER_SCENE)
     put(stack, "intent", intent("put_into", "drawer1"))
     end = plans.wait(lambda m: m["state"] != "running", timeout=300)
-    assert (end["state"], end["error"]) == ("success", None), (end["sequence"], stack.logs(["planner", "mujoco-sim"]))
+    assert (end["state"], end["error"]) == ("success", None), (
+        end["sequence"], stack.logs(["planner", "mujoco-sim"]))
     got = steps(end)
     assert got[-1] == ("put_into", "drawer1") and ("open", "drawer1") in got
     assert got in (PAPER_SEQUENCE, PAPER_SEQUENCE[1:]), got  # place first, if the tree says so
