@@ -14,13 +14,15 @@
 Every model gets the same budget (`cbgo.services.intent.models.STEPS` gradient steps, at most
 60 s each) and trains single-threaded; ``--jobs`` runs that many trainings at once. Printed:
 both tables; saved to ``--out``: ``model_comparison.png``, ``learning_curve.png`` and
-``results.json`` (also ``--json``). ``--quick`` is a smoke test (1 seed, small data).
+``results.json`` (also ``--json``). ``--quick`` is a smoke test (1 seed, small data);
+``--from-json`` prints and plots a saved ``results.json`` again without training.
 
 Examples::
 
     cbgo bench intent                       # the full reproduction (tens of minutes)
     cbgo bench intent --quick
     cbgo bench intent --jobs 2 --out out/bench-intent --json /tmp/intent.json
+    cbgo bench intent --from-json out/bench-intent/results.json --out /tmp/replot
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ PAPER = {
     "M4": {"D1": "99.6", "D2": "99.5", "D3": "97.7±0.2", "D4": "92.6±4.6"},
     "M5": {"D1": "99.3±0.3", "D2": "99.4", "D3": "97.1±0.3", "D4": "97.4", "D5": "92.6"},
 }
+TIME_LIMIT_S = 60.0  # per training: the budget the comparison promises
 GOALS = {"D4 joint": 0.995, "D5 joint": 0.99, "D4@1000 joint": 0.97, "ECE": 0.03}
 
 
@@ -74,6 +77,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", type=Path, default=None, help="also write the results here")
     parser.add_argument("--quick", action="store_true",
                         help="smoke test: 1 seed, 600 train, 400 test, sizes 100,300,600")
+    parser.add_argument("--from-json", type=Path, default=None,
+                        help="print and plot the results.json of an earlier run (no training)")
 
 
 @dataclass(frozen=True)
@@ -95,7 +100,8 @@ def _data(name: str, seed: int, n_train: int, n_test: int
 
 
 def _run_job(job: Job, train: datasets.Dataset, test: datasets.Dataset) -> dict[str, Any]:
-    model, seconds = fit(job.kind, train.subset(slice(0, job.n)), job.steps, job.seed)
+    model, seconds = fit(job.kind, train.subset(slice(0, job.n)), job.steps, job.seed,
+                         time_limit_s=TIME_LIMIT_S)
     return {"model": job.kind, "dataset": job.dataset, "seed": job.seed, "n": job.n,
             "seconds": seconds, **evaluate(model, test)}
 
@@ -187,7 +193,7 @@ def plot(results: list[dict], models: list[str], names: list[str], n: int,
     ax.set_ylim(50, 101)
     ax.set_ylabel("test accuracy (%)")
     ax.set_title(f"Model comparison: {n} training observations, mean ± std over seeds")
-    ax.legend(ncol=len(models), fontsize=8, loc="lower left")
+    ax.legend(ncol=len(models), fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.08))
     ax.grid(axis="y", alpha=0.3)
     paths.append(out / "model_comparison.png")
     fig.tight_layout()
@@ -202,6 +208,8 @@ def plot(results: list[dict], models: list[str], names: list[str], n: int,
             ax.plot(sizes, means, marker="o", label=model if model != "ours" else "ours (joint)")
             ax.fill_between(sizes, means - stds, means + stds, alpha=0.2)
         ax.set_xscale("log")
+        ax.set_xticks(sizes, [str(size) for size in sizes], fontsize=8)
+        ax.minorticks_off()
         ax.set_xlabel("training observations (D4)")
         ax.set_ylabel("test accuracy (%)")
         ax.set_title("Learning curve on D4")
@@ -226,7 +234,7 @@ def goals(results: list[dict], n: int) -> dict[str, dict[str, float]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Runs the benchmark; returns 0."""
+    """Runs the benchmark (or re-reports a saved one); returns 0."""
     if args.quick:
         args.seeds, args.train, args.test, args.sizes = 1, 600, 400, "100,300,600"
     names = [d for d in args.datasets.split(",") if d]
@@ -236,6 +244,18 @@ def run(args: argparse.Namespace) -> int:
     for name in names:
         datasets.check_name(name)
     started = time.perf_counter()
+    if args.from_json is not None:
+        saved = json.loads(args.from_json.read_text())
+        results = saved["results"]
+        args.train, args.test, args.seeds = saved["train"], saved["test"], saved["seeds"]
+    else:
+        results = _train_all(args, names, models, curve_models, sizes)
+    report(results, args, names, models, curve_models, sizes, time.perf_counter() - started)
+    return 0
+
+
+def _train_all(args: argparse.Namespace, names: list[str], models: list[str],
+               curve_models: list[str], sizes: list[int]) -> list[dict[str, Any]]:
     needed = set(names) | ({"D4"} if sizes else set())
     data = {(name, seed): _data(name, seed, max([args.train, *sizes]), args.test)
             for name in tqdm(sorted(needed), desc="generating data", file=sys.stderr)
@@ -244,7 +264,12 @@ def run(args: argparse.Namespace) -> int:
             for m in models]
     jobs += [Job(m, "D4", s, n, args.steps) for s in range(args.seeds) for n in sizes
              for m in curve_models if not (n == args.train and "D4" in names and m in models)]
-    results = run_jobs(jobs, data, args.jobs)
+    return run_jobs(jobs, data, args.jobs)
+
+
+def report(results: list[dict], args: argparse.Namespace, names: list[str], models: list[str],
+           curve_models: list[str], sizes: list[int], seconds: float) -> None:
+    """Prints the tables, the goals and the training times; saves the plots and the JSON."""
     print(f"\nModel comparison: test accuracy (%) of the action, {args.train} training and "
           f"{args.test} fresh test observations, mean ± std over {args.seeds} seed(s)\n")
     print(comparison_table(results, models, names, args.train))
@@ -255,23 +280,21 @@ def run(args: argparse.Namespace) -> int:
     if met:
         print("\ncbgo's model against the goals:")
         for key, v in met.items():
-            unit = "" if key == "ECE" else " %"
-            scale = 1.0 if key == "ECE" else 100.0
+            unit, scale = ("", 1.0) if key == "ECE" else (" %", 100.0)
             print(f"  {key:<14} {scale * v['mean']:.3f} ± {scale * v['std']:.3f}{unit}  "
                   f"(goal {'≤' if key == 'ECE' else '≥'} {scale * v['goal']:g}{unit}: "
                   f"{'met' if v['met'] else 'NOT met'})")
-    seconds = [r["seconds"] for r in results]
+    times = [r["seconds"] for r in results]
     by_model = {m: float(np.mean([r["seconds"] for r in results if r["model"] == m]))
                 for m in sorted({r["model"] for r in results})}
-    print(f"\ntraining time per model: mean {np.mean(seconds):.1f} s, max {np.max(seconds):.1f} s "
+    print(f"\ntraining time per model: mean {np.mean(times):.1f} s, max {np.max(times):.1f} s "
           f"({', '.join(f'{m} {s:.1f} s' for m, s in by_model.items())}); "
-          f"bench {time.perf_counter() - started:.0f} s")
+          f"this run {seconds:.0f} s")
     paths = plot(results, models, names, args.train, curve_models, sizes, args.out)
-    report = {"train": args.train, "test": args.test, "seeds": args.seeds, "steps": args.steps,
-              "results": results, "goals": met, "paper": PAPER}
+    saved = {"train": args.train, "test": args.test, "seeds": args.seeds, "steps": args.steps,
+             "results": results, "goals": met, "paper": PAPER}
     for path in [args.out / "results.json", args.json]:
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(json.dumps(report, indent=1) + "\n")
+            path.write_text(json.dumps(saved, indent=1) + "\n")
     print("saved " + ", ".join(str(p) for p in [*paths, args.out / "results.json"]))
-    return 0

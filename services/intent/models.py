@@ -242,6 +242,7 @@ class SlotModel:
         x = slot_features(self.kind, batch)
         self.standardizer = bayes.Standardizer.fit(x)
         arch = bayes.Architecture(x.shape[1], SLOT_HIDDEN[self.kind], N_ACTIONS, "tanh")
+        torch.manual_seed(config.seed)  # the initial weights too follow the seed
         self.net = bayes.BayesMLP(arch)
         return bayes.train(self.net, self.standardizer(x), np.asarray(action), config, progress)
 
@@ -419,6 +420,7 @@ class OursModel:
             arch: the architecture of a new network (defaults sized to the batch).
         """
         if self.net is None:
+            torch.manual_seed(config.seed)  # the initial weights too follow the seed
             self.net = IntentNet(arch or IntentArch(batch.g.shape[1], batch.user.shape[1]))
             # Standardised context: a clear gesture then needs no large weights, which the
             # prior would fight (the network came out underconfident without it).

@@ -91,12 +91,17 @@ def decision_ece(confidence: np.ndarray, right: np.ndarray, bins: int = 15) -> f
 
 
 def fit(kind: str, train: datasets.Dataset, steps: int = STEPS, seed: int = 0,
-        progress: bool | str = False) -> tuple[OursModel | SlotModel, float]:
-    """Trains a model of `kind` on a dataset; returns it and the training time (s)."""
+        progress: bool | str = False, time_limit_s: float | None = None
+        ) -> tuple[OursModel | SlotModel, float]:
+    """Trains a model of `kind` on a dataset; returns it and the training time (s).
+
+    Without a time limit the result depends only on the data and the seed (single-threaded
+    torch); with one, a slow machine stops training early.
+    """
     torch.set_num_threads(1)  # tiny networks: threads only cost
     model = new_model(kind)
     batch = Batch.from_dataset(train)
-    config = train_config(len(train), steps=steps, seed=seed)
+    config = train_config(len(train), steps=steps, seed=seed, time_limit_s=time_limit_s)
     started = time.perf_counter()
     if isinstance(model, OursModel):
         model.fit(batch, train.action, train.target, config, progress)
