@@ -25,6 +25,7 @@ import numpy as np
 
 from cbgo import keys, wire
 from cbgo.config import data_dir
+from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.runtime import Service, main_for
 from cbgo.services.dynamic_gesture.classifier import DTW_MODES
@@ -32,10 +33,6 @@ from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, read_de
 from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig, Window
 
 MODEL = "promp-dtw-1"
-
-
-def _help(text: str) -> dict:
-    return {"help": text}
 
 
 @dataclass

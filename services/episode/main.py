@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cbgo import keys, wire
+from cbgo.config import described as _help
 from cbgo.errors import ConfigError
 from cbgo.examples import example
 from cbgo.runtime import Service, main_for
@@ -41,10 +42,6 @@ from cbgo.transform import default_to_base, parse_to_base
 
 FOCUS_SOURCES = ("gaze", "pointing")
 LATENCY_WINDOW = 1000  # episodes kept for the status's latency figures
-
-
-def _help(text: str) -> dict:
-    return {"help": text}
 
 
 @dataclass

@@ -24,16 +24,13 @@ import torch
 
 from cbgo import keys, wire
 from cbgo.config import data_dir
+from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.runtime import Service, main_for
 from cbgo.services.intent.decide import DecisionConfig
 from cbgo.services.intent.engine import InputError, IntentEngine
 from cbgo.services.intent.models import OursModel
 from cbgo.services.intent.personal import PersonalStore
-
-
-def _help(text: str) -> dict:
-    return {"help": text}
 
 
 def default_model_path() -> Path:

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cbgo import keys, wire
+from cbgo.config import described as _help
 from cbgo.errors import ConfigError, DeviceError, QueryError
 from cbgo.runtime import EXIT_DEVICE, Service, main_for
 from cbgo.services.leap_bridge.sources import LiveSource, ReplaySource, SimulatedStream
@@ -35,10 +36,6 @@ from cbgo.transform import default_to_base, parse_to_base
 
 SOURCES = ("simulated", "replay", "leap")
 USER_REPEAT_S = 2.0  # republish the user so that late joiners learn it
-
-
-def _help(text: str) -> dict:
-    return {"help": text}
 
 
 @dataclass

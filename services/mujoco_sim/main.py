@@ -24,6 +24,7 @@ from pathlib import Path
 import yaml
 
 from cbgo import keys, wire
+from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.runtime import Service, main_for
 from cbgo.services.mujoco_sim import observe, scenes
@@ -31,10 +32,6 @@ from cbgo.services.mujoco_sim.build import CAMERAS
 from cbgo.services.mujoco_sim.engine import Sim
 from cbgo.services.mujoco_sim.render import Camera, RenderError
 from cbgo.services.mujoco_sim.skills import Robot
-
-
-def _help(text: str) -> dict:
-    return {"help": text}
 
 
 @dataclass

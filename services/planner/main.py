@@ -27,15 +27,11 @@ from concurrent.futures import Future
 from dataclasses import dataclass, field
 
 from cbgo import keys, wire
+from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.runtime import Context, Service, main_for
 from cbgo.services.planner.plan import Plan
 from cbgo.services.planner.scenes import SceneSource
-
-
-def _help(text: str) -> dict:
-    return {"help": text}
-
 
 FRESH_SCENE_S = 1.0  # how long an intent waits for a scene newer than itself
 

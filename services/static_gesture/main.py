@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, wire
+from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.runtime import Service, main_for
 from cbgo.services.static_gesture.classifier import (
@@ -35,10 +36,6 @@ from cbgo.services.static_gesture.classifier import (
     default_model_path,
     file_stamps,
 )
-
-
-def _help(text: str) -> dict:
-    return {"help": text}
 
 
 @dataclass

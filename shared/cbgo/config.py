@@ -38,8 +38,12 @@ LOG_LEVELS = ("debug", "info", "warning", "error")
 LOG_FORMATS = ("text", "json")
 
 
-def _help(text: str) -> dict:
+def described(text: str) -> dict:
+    """Returns the field metadata that gives a setting its --help text."""
     return {"help": text}
+
+
+_help = described
 
 
 @dataclass
