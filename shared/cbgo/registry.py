@@ -1,10 +1,15 @@
-"""The seven cbgo services: one name used in five places, and whether each exists yet.
+"""The cbgo services: one name used in five places, whether each exists, and alternatives.
 
 A service named ``static-gesture`` lives in ``services/static_gesture/`` (import
 ``cbgo.services.static_gesture``), runs as the console script ``cbgo-static-gesture`` or
 ``python -m cbgo.services.static_gesture``, declares ``cbgo/@alive/static-gesture`` and is the
 compose service ``static-gesture``. A service exists once its package has a ``main`` module;
 `cbgo up` starts only those, and lists nothing it cannot run.
+
+The seven pipeline services are the default set. An *alternative* (``replaces`` set) is
+another implementation of a default service's keys, e.g. dry-robot for mujoco-sim: it is
+never started by default, and never together with the service it replaces (two answers on
+``cbgo/robot/act`` would be wrong); `swap` puts it in that service's place.
 """
 
 from __future__ import annotations
@@ -21,11 +26,19 @@ class ServiceInfo:
         name: kebab-case service name.
         issue: the issue that builds it.
         summary: what it does, in one line.
+        replaces: the default service whose keys it answers instead, for an alternative
+            implementation; None for a default service.
     """
 
     name: str
     issue: int
     summary: str
+    replaces: str | None = None
+
+    @property
+    def role(self) -> str:
+        """The keys it serves, named by the default service that serves them."""
+        return self.replaces or self.name
 
     @property
     def package(self) -> str:
@@ -55,8 +68,12 @@ SERVICES: tuple[ServiceInfo, ...] = (
     ServiceInfo("intent", 7, "intent (action, object, params) from g and context"),
     ServiceInfo("planner", 9, "behaviour trees that turn an intent into robot actions"),
     ServiceInfo("mujoco-sim", 8, "the Panda table-top world in MuJoCo; executes robot actions"),
+    ServiceInfo("dry-robot", 10, "the robot on the symbolic world model, no physics (no "
+                "MuJoCo needed; fast plan checks)", replaces="mujoco-sim"),
 )
 ROUTER = "router"
+# `cbgo up --robot NAME`: which service answers cbgo/robot/act.
+ROBOTS: dict[str, str] = {"mujoco": "mujoco-sim", "dry": "dry-robot"}
 
 
 def by_name(name: str) -> ServiceInfo:
@@ -71,6 +88,32 @@ def by_name(name: str) -> ServiceInfo:
     raise KeyError(f"unknown service {name!r}; known: {', '.join(s.name for s in SERVICES)}")
 
 
+def defaults() -> list[ServiceInfo]:
+    """Returns the default services (alternatives left out), in pipeline order."""
+    return [s for s in SERVICES if s.replaces is None]
+
+
 def available() -> list[ServiceInfo]:
-    """Returns the services that exist in this installation, in pipeline order."""
-    return [s for s in SERVICES if s.exists()]
+    """Returns the default services that exist in this installation, in pipeline order."""
+    return [s for s in defaults() if s.exists()]
+
+
+def alternatives(name: str) -> list[ServiceInfo]:
+    """Returns the services that can replace the named default service."""
+    return [s for s in SERVICES if s.replaces == name]
+
+
+def swap(services: list[ServiceInfo], chosen: ServiceInfo) -> list[ServiceInfo]:
+    """Returns `services` with whichever serves `chosen`'s keys replaced by `chosen`.
+
+    The list is unchanged when none of them serves those keys.
+    """
+    return [chosen if s.role == chosen.role else s for s in services]
+
+
+def clashes(services: list[ServiceInfo]) -> list[tuple[ServiceInfo, ServiceInfo]]:
+    """Returns the pairs of services that would both answer the same keys."""
+    out = []
+    for i, first in enumerate(services):
+        out += [(first, other) for other in services[i + 1:] if other.role == first.role]
+    return out

@@ -5,11 +5,15 @@ restarted with back-off. `up` says when every liveliness token is alive, when on
 and when it is back. Ctrl-C or SIGTERM stops the services, then the router, cleanly.
 
 Only services that exist in this installation can be started (`cbgo up --list` shows them);
-nothing is faked for the others.
+nothing is faked for the others. Alternatives (another implementation of a service's keys,
+such as dry-robot for mujoco-sim) are started only when asked for, by name or with
+``--robot``, and never together with the service they replace.
 
 Examples::
 
     cbgo up                                 # router + every built service
+    cbgo up --robot dry                     # the same, with dry-robot instead of mujoco-sim
+    cbgo up dry-robot planner               # router + the symbolic robot + the planner
     cbgo up episode intent                  # router + two services
     cbgo up --no-router --connect tcp/10.0.0.5:7447 planner   # join a remote router
     cbgo up --listen tcp/127.0.0.1:7448     # router on another port; services follow it
@@ -42,6 +46,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="services to start (default: every built service)")
     parser.add_argument("--list", action="store_true",
                         help="list the services, whether each is built, and exit")
+    parser.add_argument("--robot", choices=list(registry.ROBOTS), default=None,
+                        help="which robot answers cbgo/robot/act: " + ", ".join(
+                            f"{k} ({v})" for k, v in registry.ROBOTS.items())
+                        + "; it takes mujoco-sim's place in the default set or in the "
+                          "named services [mujoco]")
     parser.add_argument("--no-router", dest="router", action="store_false",
                         help="do not start a router; join the one at --connect")
     parser.add_argument("--router-listen", default=DEFAULT_ROUTER_LISTEN, metavar="ENDPOINT",
@@ -55,28 +64,48 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def list_services() -> int:
-    """Prints every service and whether it is built."""
+    """Prints every service, whether it is built, and which are alternatives."""
     for info in registry.SERVICES:
         state = "built" if info.exists() else f"not built yet (issue {info.issue})"
-        print(f"{info.name:<16} {state:<26} {info.summary}")
+        if info.replaces:
+            state += f", replaces {info.replaces}"
+        print(f"{info.name:<16} {state:<34} {info.summary}")
+    robots = {v: k for k, v in registry.ROBOTS.items()}
+    for info in registry.SERVICES:
+        if info.replaces:
+            how = f"`cbgo up --robot {robots[info.name]}`" if info.name in robots else "by name"
+            print(f"\n{info.name} takes the place of {info.replaces} only when asked: {how}, or "
+                  f"by name (`cbgo up {info.name} ...`)")
     return 0
 
 
-def chosen_services(names: list[str]) -> list[registry.ServiceInfo]:
-    """Returns the services to start, refusing unknown or unbuilt ones with a clear error."""
-    if not names:
-        return registry.available()
-    chosen = []
-    for name in names:
-        try:
-            info = registry.by_name(name)
-        except KeyError as e:
-            fail(str(e.args[0]), 2)
-        if not info.exists():
-            fail(f"service {name!r} is not built yet (issue {info.issue}); "
-                 "`cbgo up --list` shows which are", 2)
-        chosen.append(info)
+def chosen_services(names: list[str], robot: str | None = None) -> list[registry.ServiceInfo]:
+    """Returns the services to start, refusing unknown, unbuilt or clashing ones clearly.
+
+    Args:
+        names: the services named on the command line (none: the default set).
+        robot: a key of `registry.ROBOTS`: that robot takes the place of the one in the set.
+    """
+    chosen = [_built(name) for name in names] if names else registry.available()
+    if robot is not None:
+        chosen = registry.swap(chosen, _built(registry.ROBOTS[robot]))
+    for first, other in registry.clashes(chosen):
+        if first.name == other.name:
+            fail(f"{first.name} is named twice", 2)
+        fail(f"{first.name} and {other.name} answer the same keys (one replaces the other); "
+             "start one of them", 2)
     return chosen
+
+
+def _built(name: str) -> registry.ServiceInfo:
+    try:
+        info = registry.by_name(name)
+    except KeyError as e:
+        fail(str(e.args[0]), 2)
+    if not info.exists():
+        fail(f"service {name!r} is not built yet (issue {info.issue}); "
+             "`cbgo up --list` shows which are", 2)
+    return info
 
 
 def _local_endpoint(listen: str) -> str:
@@ -117,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
     """Runs the supervisor until Ctrl-C/SIGTERM."""
     if args.list:
         return list_services()
-    services = chosen_services(args.services)
+    services = chosen_services(args.services, args.robot)
     if not services:
         print("no service is built yet; running the router only (`cbgo up --list`)",
               flush=True)
