@@ -21,6 +21,7 @@ import cbgo
 
 # verb -> module in cbgo.cli; each module has add_arguments(parser) and run(args) -> int.
 VERBS = {
+    "demo": ("demo", "run the paper's story end to end: services, simulated users, a report"),
     "up": ("up", "start the router and services locally, merge logs, restart crashes"),
     "router": ("router", "run the Zenoh router (Python, admin space on)"),
     "ls": ("ls", "list live services with host, pid, uptime and keys"),
@@ -40,6 +41,7 @@ VERBS = {
     "sim": ("sim", "talk to the simulator: snapshot, reset"),
     "plot": ("plot", "draw figures from recordings (the paper's episode figure)"),
     "plan": ("plan", "show the planner's live behaviour tree"),
+    "certs": ("certs", "make the TLS certificates of a secured network (openssl)"),
 }
 
 

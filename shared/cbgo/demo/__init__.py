@@ -1,0 +1,1 @@
+"""`cbgo demo`: the scripted end-to-end session (see cbgo.cli.demo)."""
