@@ -4,6 +4,9 @@ There is no Docker engine in CI, so `docker compose config` is not run: the comp
 parsed with PyYAML (which resolves the anchors and merge keys) and checked against the
 contract — the service set of `cbgo.registry`, client mode through the router, healthchecks
 through liveliness tokens — and every command it runs must be a real entry point of the package.
+Override files (``deploy/compose.*.yaml``) are merged onto it with Compose's merge rules
+(mappings merged, lists appended, ``command`` replaced, ``!reset``/``!override`` honoured) and
+the result is checked the same way: which services start by default, and never two robots.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from cbgo import registry
 from cbgo.registry import ROUTER, SERVICES
 
 try:
@@ -29,8 +33,71 @@ except ModuleNotFoundError:  # Python 3.10
 REPO = Path(__file__).resolve().parents[2]
 DEPLOY = REPO / "deploy"
 COMPOSE_FILE = DEPLOY / "compose.yaml"
+OVERRIDES = sorted(DEPLOY.glob("compose.*.yaml"))
 SERVICE_NAMES = [s.name for s in SERVICES]
+DEFAULT_NAMES = [s.name for s in registry.defaults()]
 ROUTER_ENDPOINT = "tcp/router:7447"
+REPLACED_LISTS = {"command", "entrypoint", "test"}  # Compose replaces these instead of appending
+
+
+class _Reset:
+    """``!reset``: the key is removed from the merged file."""
+
+
+class _Override:
+    """``!override VALUE``: VALUE replaces the base file's instead of merging with it."""
+
+    def __init__(self, value):
+        self.value = value
+
+
+class ComposeLoader(yaml.SafeLoader):
+    """PyYAML's safe loader plus Compose's merge tags."""
+
+
+def _tag(constructor):
+    def construct(loader, node):
+        if isinstance(node, yaml.MappingNode):
+            return constructor(loader.construct_mapping(node, deep=True))
+        if isinstance(node, yaml.SequenceNode):
+            return constructor(loader.construct_sequence(node, deep=True))
+        return constructor(loader.construct_scalar(node))
+    return construct
+
+
+ComposeLoader.add_constructor("!reset", _tag(lambda _value: _Reset()))
+ComposeLoader.add_constructor("!override", _tag(_Override))
+
+
+def merge(base, override, key: str = ""):
+    """Returns `override` merged onto `base` by Compose's rules (the subset these files use)."""
+    if isinstance(override, _Override):
+        return override.value
+    if isinstance(base, dict) and isinstance(override, dict):
+        out = dict(base)
+        for k, v in override.items():
+            if isinstance(v, _Reset):
+                out.pop(k, None)
+            else:
+                out[k] = merge(base[k], v, k) if k in base else _plain(v)
+        return out
+    if isinstance(base, list) and isinstance(override, list) and key not in REPLACED_LISTS:
+        return base + [v for v in override if v not in base]
+    return _plain(override)
+
+
+def _plain(value):
+    """Returns a value with its merge tags applied (a new key has nothing to merge with)."""
+    if isinstance(value, _Override):
+        return value.value
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items() if not isinstance(v, _Reset)}
+    return value
+
+
+def started_by_default(services: dict) -> set[str]:
+    """Returns the services `docker compose up` starts with no --profile: those without one."""
+    return {name for name, service in services.items() if not service.get("profiles")}
 
 
 @pytest.fixture(scope="module")
@@ -106,8 +173,17 @@ def test_the_compose_file_has_the_shape_of_the_compose_spec(compose):
                 assert source in compose["volumes"], f"{name} mounts undeclared volume {source}"
 
 
-def test_the_services_are_the_router_and_the_seven_of_the_registry(services):
+def test_the_services_are_the_router_and_every_service_of_the_registry(services):
     assert set(services) == {ROUTER, *SERVICE_NAMES}
+
+
+def test_only_the_router_and_the_default_services_start_by_default(services):
+    # An alternative (dry-robot) answers the same keys as the service it replaces: starting
+    # both would put two answers on cbgo/robot/act. It sits under a profile until swapped in.
+    assert started_by_default(services) == {ROUTER, *DEFAULT_NAMES}
+    for info in SERVICES:
+        if info.replaces:
+            assert services[info.name].get("profiles"), f"{info.name} needs a profile"
 
 
 def test_every_container_runs_the_one_image_built_from_the_dockerfile(services):
@@ -181,6 +257,12 @@ def test_the_models_and_recordings_volumes_are_mounted_under_data(compose, servi
         assert {"models:/data/models", "recordings:/data/recordings"} <= mounts, name
 
 
+def test_the_services_keep_what_they_learn_in_the_models_volume(services):
+    # cbgo.config.data_dir(): user models, personal intent models, taught gestures.
+    for name in SERVICE_NAMES:
+        assert environment(services[name]).get("CBGO_DATA_DIR") == "/data/models", name
+
+
 def test_the_simulator_renders_headless_through_egl(services):
     assert environment(services["mujoco-sim"]).get("MUJOCO_GL") == "egl"
 
@@ -221,6 +303,48 @@ def test_each_service_runs_the_console_script_of_its_package(services, project_s
     assert installed_scripts[info.script].value == target
     main = installed_scripts[info.script].load()
     assert callable(main)
+
+
+# --- override files ----------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def dry_robot_merged(compose) -> dict:
+    override = yaml.load((DEPLOY / "compose.dry-robot.yaml").read_text(), ComposeLoader)
+    return merge(compose, override)
+
+
+def test_the_merge_rules_of_the_test_are_composes():
+    base = {"a": {"profiles": ["x"], "command": ["old"], "dns": ["1"], "keep": 1}}
+    override = yaml.load("a: {profiles: !reset [], command: [new], dns: ['2'], "
+                         "keep: !override two}", ComposeLoader)
+    assert merge(base, override) == {"a": {"command": ["new"], "dns": ["1", "2"], "keep": "two"}}
+
+
+@pytest.mark.parametrize("path", OVERRIDES, ids=lambda p: p.name)
+def test_every_override_file_names_known_services_and_runs_real_entry_points(
+        compose, installed_scripts, path):
+    override = yaml.load(path.read_text(), ComposeLoader)
+    assert set(override) <= {"services", "volumes"}, f"{path.name}: only services and volumes"
+    assert set(override["services"]) <= set(compose["services"]), (
+        f"{path.name} adds services; add them to compose.yaml (under a profile) instead")
+    merged = merge(compose, override)
+    for name, service in merged["services"].items():
+        program = service["command"][0]
+        assert program == "cbgo" or program in installed_scripts, f"{name}: {program}"
+        test = service["healthcheck"]["test"]
+        assert test[1:4] == ["cbgo", "wait-alive", name], f"{name}: {test}"
+
+
+def test_the_dry_robot_override_starts_dry_robot_instead_of_mujoco_sim(dry_robot_merged):
+    services = dry_robot_merged["services"]
+    expected = {ROUTER, *(n for n in DEFAULT_NAMES if n != "mujoco-sim"), "dry-robot"}
+    assert started_by_default(services) == expected
+    assert services["mujoco-sim"]["profiles"], "mujoco-sim must be disabled by a profile"
+    robot = services["dry-robot"]
+    assert robot["command"] == ["cbgo-dry-robot"]
+    assert environment(robot).get("ZENOH_CONNECT") == ROUTER_ENDPOINT
+    assert robot["depends_on"] == {ROUTER: {"condition": "service_healthy"}}
 
 
 # --- the Zenoh configs --------------------------------------------------------------------------
