@@ -17,4 +17,5 @@ BENCHES = {
     "sim": ("cbgo.services.mujoco_sim.bench", "mujoco-sim: success and speed of every action"),
     "episode": ("cbgo.services.episode.bench",
                 "episode end condition -> summary latency through real processes"),
+    "latency": ("cbgo.bench.latency", "end to end: end condition -> intent -> robot action"),
 }
