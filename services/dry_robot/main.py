@@ -114,7 +114,7 @@ class DryRobot(Service):
         super().__init__(settings)
         self.stop = threading.Event()
         self.robot: SymbolicRobot | None = None
-        self.start: int | dict = settings.seed
+        self.start_scene: int | dict = settings.seed
         self.source = ""
         self.stops = 0
         self.counts = {"actions": 0, "ok": 0, "refused": 0, "stopped": 0}
@@ -123,9 +123,9 @@ class DryRobot(Service):
         """Loads the start scene, then declares stop, outputs, queryables and the state timer."""
         self.ctx = ctx
         s = self.settings
-        self.start = read_scene_file(s.scene) if s.scene else s.seed
+        self.start_scene = read_scene_file(s.scene) if s.scene else s.seed
         try:
-            self.load(self.start)
+            self.load(self.start_scene)
         except SceneError as e:
             raise ConfigError(f"cannot load the start scene: {e}") from e
         ctx.subscribe(keys.ROBOT_STOP, self.on_stop, immediate=True)
@@ -148,7 +148,9 @@ class DryRobot(Service):
             SceneError: the scene breaks the world model's rules.
         """
         scene = random_scene(target) if isinstance(target, int) else consistent_scene(target)
-        self.robot = self.new_robot(scene)
+        previous, self.robot = self.robot, self.new_robot(scene)
+        if previous is not None:  # seq counts per publisher, across resets
+            self.robot.seq, self.robot.state_seq = previous.seq, previous.state_seq
         self.source = f"seed {target}" if isinstance(target, int) else "scene"
 
     def new_robot(self, scene: Scene) -> SymbolicRobot:
@@ -203,7 +205,7 @@ class DryRobot(Service):
         elif "seed" in query:
             target = int(query["seed"])
         else:
-            target = self.start  # the --scene file's body, or --seed
+            target = self.start_scene  # the --scene file's body, or --seed
         try:
             self.load(target)
         except SceneError as e:

@@ -105,8 +105,10 @@ def test_reset_with_an_inconsistent_scene_is_refused_and_keeps_the_world(bus):
 
 
 def test_reset_with_a_seed_loads_the_world_models_random_scene(bus):
+    seq_before = published(bus, "scene/state")[-1]["seq"]
     ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "seed": 5})
     assert ok and reply["ok"]
+    assert reply["scene"]["seq"] > seq_before  # one publisher, one counter
     assert reply["scene"]["objects"] == random_scene(5).to_dict()["objects"]
     assert published(bus, "scene/state")[-1] == reply["scene"]
     assert bus.service.status_extra()["scene_source"] == "seed 5"
