@@ -1,5 +1,5 @@
 # Two commands do all set-up on a fresh machine:
-#   make demo   creates .venv, installs cbgo, runs the main job (today: `cbgo up`)
+#   make demo   creates .venv, installs cbgo, runs `cbgo demo` (DEMO_ARGS='--robot dry' ...)
 #   make test   creates .venv, installs cbgo with test extras, runs ruff and the test suite
 # torch is installed first, pinned to the local CPU wheel, so that nothing pulls a CUDA build.
 
@@ -26,7 +26,7 @@ $(STAMP): pyproject.toml setup.py
 install: $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/cbgo up
+	$(VENV)/bin/cbgo demo $(DEMO_ARGS)
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check shared services tests docs

@@ -32,6 +32,7 @@ INTENT_TIMEOUT_S = 5.0     # episode summary -> intent
 NO_PLAN_WAIT_S = 1.0       # how long a refused intent is watched for a plan that must not start
 SCENE_SETTLE_S = 0.3       # after a plan ends, the scene/state that follows it
 RECOVERY_TIMEOUT_S = 120.0
+PLAN_KILL_DELAY_S = 0.1    # a plan-phase kill hits this long into the plan's first action
 KILL_AT = 0.55             # when in an episode's playing time a gesture-phase kill hits
 
 
@@ -150,6 +151,11 @@ class Runner:
         for index, step in enumerate(self.script.steps):
             result = self.run_step(index, step)
             results.append(result)
+            self.faults, missed = [f for f in self.faults if f.step > index], [
+                f for f in self.faults if f.step <= index]
+            result.problems += [f"the fault {f.target}@{f.step + 1}:{f.phase} could not be "
+                                "made (the step never reached that phase)" for f in missed]
+            result.ok = result.ok and not missed
             mark = "as scripted" if result.ok else "NOT as scripted: " + "; ".join(
                 result.problems)
             self.say(f"{'ok' if result.ok else 'FAILED'}  step {index + 1}: {mark}")
@@ -242,7 +248,7 @@ class Runner:
         if self.scheduled(index, "plan"):
             first = self.inbox.wait(mark, "plan/status", running, 10.0)
             if first is not None:
-                self.kill_scheduled(index, "plan", first.at + 0.3)
+                self.kill_scheduled(index, "plan", first.at + PLAN_KILL_DELAY_S)
         end = self.inbox.wait(mark, "plan/status", lambda m: m["intent"]["episode"] == episode
                               and m["state"] != "running", self.plan_timeout_s)
         if end is None:
@@ -385,9 +391,10 @@ class Runner:
 
 
 # `--faults all`: each of the seven services and the router killed once, at points where the
-# bundled session is doing something that needs them: the planner and the robot while a plan
-# executes (steps 1 and 3), the others while a gesture is being made, the router between steps.
-ALL_FAULTS = ((0, "plan", "planner"), (1, "gesture", "dynamic-gesture"), (2, "plan", "robot"),
+# bundled session is doing something that needs them: the robot in the middle of its first
+# action (step 1), the planner in the middle of a four-action plan (step 3), the others while
+# a gesture is being made, the router between steps.
+ALL_FAULTS = ((0, "plan", "robot"), (1, "gesture", "dynamic-gesture"), (2, "plan", "planner"),
               (3, "gesture", "static-gesture"), (4, "gesture", "episode"),
               (5, "gesture", "intent"), (6, "before", "router"), (6, "gesture", "leap-bridge"))
 PHASES = ("before", "gesture", "plan")
