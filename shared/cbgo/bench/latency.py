@@ -56,8 +56,10 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import signal
 import sys
 import tempfile
 import threading
@@ -436,7 +438,9 @@ def episode_record(run: Run, next_played: float, seen: Observed, debounce_s: flo
     plan = seen.plans.get(summary["episode"])
     record["plan"] = plan[1]["state"] if plan else None
     record["plan_error"] = plan[1]["error"] if plan else None
-    act = first_act(intent_rx, next_played) if intent["status"] == "accepted" else None
+    # Searched from the intent's own stamp: the bench's receipt could come after the planner's
+    # first action if this process was held up; the latency is still taken from the receipt.
+    act = first_act(intent["ts"], next_played) if intent["status"] == "accepted" else None
     record["first_robot_action"] = act
     return record
 
@@ -629,7 +633,8 @@ def run(args: argparse.Namespace) -> int:
     results = {"settings": {k: v for k, v in vars(args).items() if k != "func"},
                "episodes": episodes, "robot": _robot_text(robot, args),
                "loadavg_before": _loadavg()}
-    with tempfile.TemporaryDirectory() as tmp, Stack(Path(tmp)) as stack:
+    with _sigterm_as_interrupt(), tempfile.TemporaryDirectory() as tmp, \
+            Stack(Path(tmp)) as stack:
         names = start_pipeline(stack, args, robot, Path(tmp) / "data")
         bench_robot = None
         try:
@@ -655,6 +660,23 @@ def run(args: argparse.Namespace) -> int:
     out.write_text(json.dumps(results, indent=2))
     print(f"wrote {out}")
     return 0
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """Makes SIGTERM end the bench like Ctrl-C, so that the Stack stops every process."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(_signum, _frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _analyse(runs: list[Run], tap: Tap, args: argparse.Namespace, first_act) -> dict:
