@@ -183,8 +183,10 @@ class Runner:
                 result.problems = problems + ["services did not come back"]
                 break
             now = self.current_scene()
-            if now is not None and checkpoint is not None and not goal_failures(
-                    step.goal, checkpoint, now) and not step.goal.get("unchanged"):
+            # A restarted robot starts from a world of its own, which proves nothing.
+            if now is not None and checkpoint is not None and not self.robot_restarted(index) \
+                    and not goal_failures(step.goal, checkpoint, now) \
+                    and not step.goal.get("unchanged"):
                 result.ok, result.scene_after = True, now
                 self.say("  the lost plan had already reached the step's goal")
                 break
@@ -296,6 +298,10 @@ class Runner:
     def faulted(self, index: int) -> bool:
         """Whether a kill was made during step `index`."""
         return any(r.step == index for r in self.recoveries)
+
+    def robot_restarted(self, index: int) -> bool:
+        """Whether the robot service was killed during step `index`."""
+        return any(r.step == index and r.target == self.robot for r in self.recoveries)
 
     def scheduled(self, index: int, phase: str) -> bool:
         """Whether a kill is still due in this step and phase."""
