@@ -271,11 +271,11 @@ def _report(args, script, robot, out, results, recoveries, timing, plotted, say,
     for r in results:
         mark = "ok " if r.ok else "FAIL"
         intent = r.intent or {}
-        got = (f"{intent.get('status')} {intent.get('action')}({intent.get('object') or ''})"
-               if intent else "no intent")
+        got = "no intent" if not intent else intent["status"] if intent["status"] != (
+            "accepted") else f"{intent['action']}({intent.get('object') or ''})"
         plan = (r.plan or {}).get("state", "-")
         say(f"  {mark} {r.index + 1}. {r.step.user:6} expect {r.step.expect.label():24} got "
-            f"{got:36} plan {plan:8} attempts {r.attempts}")
+            f"{got:24} plan {plan:8} attempts {r.attempts}")
     if recoveries:
         say("\nfaults (kill -9 -> liveliness token back; every token back):")
         for rec in recoveries:

@@ -166,7 +166,7 @@ class Runner:
         result = StepResult(index, step, started_at=time.time())
         checkpoint = self.current_scene()
         result.scene_before = checkpoint
-        self.say(f"step {index + 1}/{len(self.script.steps)}  {step.user}: {step.say}  "
+        self.say(f"step {index + 1}/{len(self.script.steps)}  {step.say}  "
                  f"(expect {step.expect.label()})")
         while True:
             result.attempts += 1
