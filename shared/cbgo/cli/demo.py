@@ -3,7 +3,7 @@
 `cbgo demo` starts the router and the seven services locally (`cbgo up`), resets the robot's
 world to the session's scene, and lets simulated users perform a scripted session (bundled:
 ``paper``): user1 picks up a full cup, pours it into an empty one, puts it into the closed
-drawer (the behaviour tree opens the drawer first), grabs while looking between two boxes (too
+drawer (the behaviour tree opens the drawer first), grabs without looking at anything (too
 ambiguous: refused as low confidence); user2, whose left and right are swapped, picks up the
 other cup and swipes right to move it left; user1 swipes right to move it back.
 
@@ -190,10 +190,11 @@ def run(args: argparse.Namespace) -> int:
         print(text, flush=True)
         lines.append(text)
 
+    if args.faults and args.no_start:
+        fail("--faults needs the demo to start the services itself (the kills go to local "
+             "pids and `cbgo up` restarts them); drop --no-start", 2)
     proc = None
     if not args.no_start:
-        if args.faults and args.no_start:
-            fail("--faults needs the demo to start the services itself", 2)
         proc = _start_system(args, robot, out)
         args.connect = [args.router_listen]
         args.connect_timeout = max(args.connect_timeout, 30.0)
