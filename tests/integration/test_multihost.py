@@ -28,9 +28,6 @@ import pytest
 PORT = 7447  # the documented port: inside the brain namespace it collides with nothing
 ROUTER = f"tcp/10.213.0.1:{PORT}"
 CLI = [sys.executable, "-m", "cbgo.cli.main"]
-# TEMPORARY: step 3 (put into the closed drawer) waits for the intent model retrain; back to
-# "" (every step) once `cbgo demo --robot dry` passes step 3 again.
-STEPS = "1,2,4-7"
 
 
 @dataclass
@@ -252,10 +249,9 @@ def test_the_session_runs_with_router_and_services_on_three_hosts(cell, tmp_path
             assert addresses[record["zid"]] == host.address, (name, record)
 
     out = tmp_path / "demo"
-    only = ["--steps", STEPS] if STEPS else []
     demo = cell.run(cell.hosts["console"],
                     ["demo", "--no-start", "--connect", ROUTER, "--robot", "dry",
-                     "--ready-timeout", "30", "-o", str(out), *only], timeout=180)
+                     "--ready-timeout", "30", "-o", str(out)], timeout=180)
     assert demo.returncode == 0, f"{demo.stdout[-4000:]}{demo.stderr[-2000:]}\n{cell.logs()}"
     steps = json.loads((out / "result.json").read_text())["steps"]
     assert steps and all(s["ok"] for s in steps), steps
