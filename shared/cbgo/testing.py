@@ -15,6 +15,14 @@ for their liveliness tokens, and tears everything down (also when a test fails):
         stack.start_router()
         stack.start_service("episode")
         stack.wait_alive(["router", "episode"])
+
+The test talks to the processes from its own Zenoh session: `Stack.collect` gathers what is
+published on a key, `Stack.put` publishes once a subscriber is there, and `Process.wait_for_line`
+waits for a line in a process's log::
+
+        summaries = stack.collect("episode/summary")
+        stack.put("hands/frame", example("hands/frame"))
+        (summary,) = summaries.wait_count(1, timeout=10)
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -207,6 +216,119 @@ class Process:
         self._log.close()
         return code
 
+    def wait_for_line(self, text: str, timeout: float = 20.0) -> str:
+        """Waits until the log has a line containing `text`; returns that line (the first).
+
+        Raises:
+            RuntimeError: the process exited without printing it (raised at once, with the log).
+            TimeoutError: it is still running and has not printed it after `timeout` seconds.
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            # Whether it had exited is read before the log, so a line printed just before the
+            # exit is still found rather than reported missing.
+            exited = self.popen.poll() is not None
+            line = self._first_line_with(text)
+            if line is not None:
+                return line
+            if exited:
+                raise RuntimeError(f"{self.name} exited with {self.popen.returncode} before "
+                                   f"printing {text!r}:\n{self.log()}")
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{text!r} not in the log of {self.name} after {timeout} s:"
+                                   f"\n{self.log()}")
+            time.sleep(0.05)
+
+    def _first_line_with(self, text: str) -> str | None:
+        return next((line for line in self.log().splitlines() if text in line), None)
+
+
+class Collector:
+    """Every message published on one key, decoded, as the test's own session receives it.
+
+    Made by `Stack.collect`. Zenoh delivers on its own thread, so the waits poll under a lock.
+    Each message is kept with its arrival time (`time.perf_counter()`), for rate and pacing
+    checks.
+
+    Args:
+        session: the Zenoh session to subscribe with (anything with `declare_subscriber`).
+        key: the full key expression.
+    """
+
+    POLL_S = 0.02
+
+    def __init__(self, session, key: str):
+        self.key = key
+        self._lock = threading.Lock()
+        self._arrivals: list[tuple[float, Any]] = []
+        # Held so that the subscription lasts as long as the collector does.
+        self._subscriber = session.declare_subscriber(key, self._on_sample)
+
+    def _on_sample(self, sample) -> None:
+        arrived = time.perf_counter()  # before decoding, which would add to the measured pace
+        message = wire.decode(sample.payload.to_bytes())
+        with self._lock:
+            self._arrivals.append((arrived, message))
+
+    def arrivals(self) -> list[tuple[float, Any]]:
+        """Returns [(arrival time, message)] so far, oldest first."""
+        with self._lock:
+            return list(self._arrivals)
+
+    def items(self) -> list[Any]:
+        """Returns the messages so far, oldest first."""
+        return [message for _, message in self.arrivals()]
+
+    def last(self) -> Any:
+        """Returns the newest message.
+
+        Raises:
+            AssertionError: nothing has arrived.
+        """
+        got = self.items()
+        assert got, f"nothing arrived on {self.key}"
+        return got[-1]
+
+    def wait_count(self, n: int, predicate: Callable[[Any], bool] | None = None,
+                   timeout: float = 20.0) -> list[Any]:
+        """Waits until at least `n` messages match; returns every match so far, oldest first.
+
+        Args:
+            n: how many matching messages to wait for.
+            predicate: which messages count (all when None).
+            timeout: seconds to wait.
+
+        Raises:
+            TimeoutError: with the number that matched and the newest message.
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            got = self.items()
+            found = [m for m in got if predicate is None or predicate(m)]
+            if len(found) >= n:
+                return found
+            if time.monotonic() > deadline:
+                newest = repr(got[-1])[:500] if got else "nothing"
+                raise TimeoutError(f"{len(found)} of {n} matching messages on {self.key} "
+                                   f"within {timeout} s; the newest: {newest}")
+            time.sleep(self.POLL_S)
+
+    def wait(self, predicate: Callable[[Any], bool] | None = None,
+             timeout: float = 20.0) -> list[Any]:
+        """Waits until a message matches; returns every match so far, oldest first."""
+        return self.wait_count(1, predicate, timeout)
+
+    def first(self, predicate: Callable[[Any], bool] | None = None,
+              timeout: float = 20.0) -> Any:
+        """Waits until a message matches; returns the earliest match."""
+        return self.wait(predicate, timeout)[0]
+
+    def window(self, seconds: float) -> list[tuple[float, Any]]:
+        """Sleeps `seconds`; returns [(arrival time, message)] of what arrived meanwhile."""
+        start = len(self.arrivals())
+        time.sleep(seconds)
+        return self.arrivals()[start:]
+
 
 class Stack:
     """Router and services as real processes on a free loopback port, for tests.
@@ -224,6 +346,7 @@ class Stack:
         self.keys = Keys(prefix)
         self.procs: dict[str, Process] = {}
         self._session = None
+        self._publishers: dict[str, Any] = {}
 
     def __enter__(self) -> Stack:
         return self
@@ -264,6 +387,40 @@ class Stack:
                                 "cbgo-test")
             self._session = zenoh.open(conf)
         return self._session
+
+    def collect(self, suffix: str) -> Collector:
+        """Starts collecting the messages published on a key (relative to the prefix).
+
+        The subscription takes a moment to reach the router: start collecting before the
+        messages are due.
+        """
+        return Collector(self.session(), self.keys.resolve(suffix))
+
+    def publisher(self, suffix: str, timeout: float = 5.0):
+        """Returns the test session's publisher on a key, once a subscriber matches it.
+
+        Raises:
+            TimeoutError: nothing subscribes to the key within `timeout` seconds, so a message
+                put now would be lost.
+        """
+        key = self.keys.resolve(suffix)
+        if key not in self._publishers:
+            self._publishers[key] = self.session().declare_publisher(key)
+        publisher = self._publishers[key]
+        deadline = time.monotonic() + timeout
+        while not publisher.matching_status.matching:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no subscriber on {key} within {timeout} s")
+            time.sleep(0.01)
+        return publisher
+
+    def put(self, suffix: str, message: Any, timeout: float = 5.0) -> None:
+        """Publishes a message (encoded to msgpack) once a subscriber is there; see `publisher`."""
+        self.put_raw(suffix, wire.encode(message), timeout)
+
+    def put_raw(self, suffix: str, payload: bytes, timeout: float = 5.0) -> None:
+        """Publishes raw bytes once a subscriber is there; see `publisher`."""
+        self.publisher(suffix, timeout).put(payload)
 
     def alive(self) -> set[str]:
         """Returns the names of the services whose liveliness token is present."""
@@ -344,6 +501,7 @@ class Stack:
 
     def close(self) -> None:
         """Stops every process (SIGTERM, then SIGKILL) and closes the test session."""
+        self._publishers.clear()
         if self._session is not None:
             with contextlib.suppress(Exception):
                 self._session.close()

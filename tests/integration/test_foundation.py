@@ -24,27 +24,6 @@ def cli(stack, *args, timeout=30):
                           text=True, timeout=timeout, env=stack.env())
 
 
-def wait_for_line(proc, needle, timeout=20.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if needle in proc.log():
-            return
-        if proc.popen.poll() is not None:
-            break
-        time.sleep(0.05)
-    raise AssertionError(f"{needle!r} not in the log of {proc.name}:\n{proc.log()}")
-
-
-def put(stack, suffix, payload: bytes):
-    """Publishes raw bytes from the test session after a subscriber is known."""
-    pub = stack.session().declare_publisher(stack.keys.resolve(suffix))
-    deadline = time.monotonic() + 5
-    while not pub.matching_status.matching and time.monotonic() < deadline:
-        time.sleep(0.01)
-    pub.put(payload)
-    return pub
-
-
 @pytest.fixture
 def probe(stack, probe_argv):
     stack.start_router()
@@ -56,9 +35,8 @@ def probe(stack, probe_argv):
 def test_cbgo_up_starts_the_router_reports_ready_and_stops_cleanly(stack):
     up = stack.spawn("up", [*CLI, "up", "--router-listen", stack.endpoint])
     stack.wait_alive(["router"])
-    wait_for_line(up, "ready: ")
+    ready = up.wait_for_line("ready: ")
     built = [s.name for s in registry.available()]
-    ready = next(line for line in up.log().splitlines() if "ready: " in line)
     assert all(name in ready for name in ["router", *built])
     listing = cli(stack, "ls")
     assert listing.returncode == 0, listing.stderr
@@ -74,8 +52,8 @@ def test_cbgo_up_restarts_a_router_killed_with_sigkill(stack):
     stack.wait_alive(["router"])
     first_pid = stack.status("router")["pid"]
     os.kill(first_pid, signal.SIGKILL)
-    wait_for_line(up, "router exited with code -9")
-    wait_for_line(up, "restarting router")
+    up.wait_for_line("router exited with code -9")
+    up.wait_for_line("restarting router")
     stack.wait_alive(["router"], timeout=30)
     assert stack.status("router")["pid"] != first_pid
 
@@ -85,7 +63,7 @@ def test_pub_and_echo_round_trip_a_message_through_the_router(stack):
     stack.wait_alive(["router"])
     echo = stack.spawn("echo", [*CLI, "echo", "user", "--json", "--count", "1", "--timeout",
                                 "20", "--connect", stack.endpoint])
-    wait_for_line(echo, "listening on cbgo/user")
+    echo.wait_for_line("listening on cbgo/user")
     sent = cli(stack, "pub", "user", '{"user": "alice"}', "--stamp", "--wait", "10")
     assert sent.returncode == 0, sent.stderr
     assert echo.wait(20) == 0
@@ -132,9 +110,7 @@ def test_cbgo_ls_shows_each_service_with_host_pid_and_keys(stack, probe):
 
 
 def test_malformed_messages_are_counted_and_the_service_keeps_working(stack, probe):
-    events = []
-    stack.session().declare_subscriber("cbgo/episode/event",
-                                       lambda s: events.append(wire.decode(s.payload.to_bytes())))
+    events = stack.collect("episode/event")
     bad = [
         b"\xc1 not msgpack",
         wire.encode({"v": 1, "ts": math.nan, "user": "x"}),
@@ -143,12 +119,10 @@ def test_malformed_messages_are_counted_and_the_service_keeps_working(stack, pro
         msgpack.packb([1, 2, 3]),
     ]
     for payload in bad:
-        put(stack, "user", payload)
-    put(stack, "user", wire.encode(example("user", user="bob")))
-    deadline = time.monotonic() + 10
-    while not events and time.monotonic() < deadline:
-        time.sleep(0.02)
-    assert [e["episode"] for e in events] == ["bob"]
+        stack.put_raw("user", payload)
+    stack.put("user", example("user", user="bob"))
+    events.wait(timeout=10)
+    assert [e["episode"] for e in events.items()] == ["bob"]
     counters = stack.status("probe")["counters"]
     assert counters["rejected"] == len(bad)
     assert counters["received"] == len(bad) + 1
@@ -179,7 +153,7 @@ def test_a_service_busy_in_a_long_handler_still_exits_within_two_seconds(stack, 
     stack.start_router()
     stack.spawn("probe", [*probe_argv, "--slow-s", "30"])
     stack.wait_alive(["router", "probe"])
-    put(stack, "user", wire.encode(example("user")))
+    stack.put("user", example("user"))
     time.sleep(0.3)  # the handler is now sleeping
     code, seconds = stack.stop("probe", signal.SIGTERM)
     assert code == 0
@@ -203,7 +177,7 @@ def test_zenoh_cli_decodes_our_messages_with_the_msgpack_codec(stack):
     sub = stack.spawn("zenoh-cli", [zenoh_cli, "--mode", "client", "--connect", stack.endpoint,
                                     "subscribe", "-k", "cbgo/**", "--decoder", "msgpack"])
     message = example("gaze")
-    put(stack, "gaze", wire.encode(message))
+    stack.put("gaze", message)
     deadline = time.monotonic() + 15
     while not sub.log().strip() and time.monotonic() < deadline:
         time.sleep(0.05)
