@@ -1,7 +1,6 @@
 """leap-bridge through real processes: rate, validity, gaze resolution, play on demand."""
 
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -14,50 +13,12 @@ from cbgo.examples import example
 CLI = [sys.executable, "-m", "cbgo.cli.main"]
 
 
-class Collector:
-    """Collects decoded messages on a key from the test's own session."""
-
-    def __init__(self, stack, suffix):
-        self.items = []
-        self.lock = threading.Lock()
-        stack.session().declare_subscriber(stack.keys.resolve(suffix), self._on)
-
-    def _on(self, sample):
-        with self.lock:
-            self.items.append((time.perf_counter(), wire.decode(sample.payload.to_bytes())))
-
-    def wait(self, predicate, timeout=20.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            with self.lock:
-                found = [m for _, m in self.items if predicate(m)]
-            if found:
-                return found
-            time.sleep(0.05)
-        raise AssertionError(f"no matching message within {timeout} s")
-
-    def window(self, seconds):
-        with self.lock:
-            start = len(self.items)
-        time.sleep(seconds)
-        with self.lock:
-            return self.items[start:]
-
-
-def put(stack, suffix, message):
-    pub = stack.session().declare_publisher(stack.keys.resolve(suffix))
-    deadline = time.monotonic() + 5
-    while not pub.matching_status.matching and time.monotonic() < deadline:
-        time.sleep(0.01)
-    pub.put(wire.encode(message))
-
-
 @pytest.mark.parametrize("rate", [60, 120])
 def test_cbgo_up_leap_bridge_streams_valid_frames_at_the_configured_rate(stack, rate):
     stack.spawn("up", [*CLI, "up", "leap-bridge", "--router-listen", stack.endpoint],
                 env={"CBGO_SCENARIO": "demo", "CBGO_LOOP": "true", "CBGO_RATE_HZ": str(rate)})
     stack.wait_alive(["router", "leap-bridge"])
-    frames = Collector(stack, "hands/frame")
+    frames = stack.collect("hands/frame")
     frames.wait(lambda m: m["hands"])
     got = frames.window(4.0)
     stamps = np.array([t for t, _ in got])
@@ -75,21 +36,20 @@ def test_gaze_follows_an_object_named_in_the_scene(stack):
     stack.start_router()
     stack.start_service("leap-bridge", "--scenario", "demo", "--loop")
     stack.wait_alive(["router", "leap-bridge"])
-    gaze = Collector(stack, "gaze")
+    gaze = stack.collect("gaze")
     scene = example("scene/state")
-    put(stack, "scene/state", scene)
+    stack.put("scene/state", scene)
     cup = np.array(next(o["position"] for o in scene["objects"] if o["name"] == "cup1"))
-    found = gaze.wait(lambda m: np.linalg.norm(np.array(m["point"]) - cup) < 0.06)
-    assert found[0]["source"] == "simulated"
-    users = Collector(stack, "user").wait(lambda m: True)
-    assert users[0]["user"] == "user1"
+    found = gaze.first(lambda m: np.linalg.norm(np.array(m["point"]) - cup) < 0.06)
+    assert found["source"] == "simulated"
+    assert stack.collect("user").first()["user"] == "user1"
 
 
 def test_the_simulated_user_idles_until_asked_to_play_a_scenario(stack):
     stack.start_router()
     stack.start_service("leap-bridge")
     stack.wait_alive(["router", "leap-bridge"])
-    frames = Collector(stack, "hands/frame")
+    frames = stack.collect("hands/frame")
     idle = frames.window(1.0)
     assert idle and not any(m["hands"] for _, m in idle)
     (ok, reply), = stack.query("cbgo/@ctl/leap-bridge/play",
@@ -120,12 +80,11 @@ TOOLBOX_JSON = Path(__file__).parents[1] / "artifacts" / "toolbox" / "two_hands.
 def test_a_toolbox_json_recording_is_replayed_as_contract_frames(stack):
     stack.start_router()
     stack.wait_alive(["router"])
-    frames = Collector(stack, "hands/frame")
+    frames = stack.collect("hands/frame")
     stack.start_service("leap-bridge", "--source", "replay", str(TOOLBOX_JSON),
                         "--loop")
     stack.wait_alive(["leap-bridge"])
-    found = frames.wait(lambda m: len(m["hands"]) == 2)
-    message = found[0]
+    message = frames.first(lambda m: len(m["hands"]) == 2)
     wire.validate(message, wire.HANDS_FRAME)
     assert message["source"] == "replay" and message["device"] == "two_hands.json"
     assert {h["side"] for h in message["hands"]} == {"left", "right"}
@@ -145,13 +104,12 @@ def test_an_mcap_recording_is_replayed_with_its_hands_order_and_pace(stack, tmp_
             recorder.write("cbgo/hands/frame", wire.encode(message), int((1000 + frame.t) * 1e9))
     stack.start_router()
     stack.wait_alive(["router"])
-    frames = Collector(stack, "hands/frame")
+    frames = stack.collect("hands/frame")
     stack.start_service("leap-bridge", "--source", "replay", str(path))
     first_palm = next(f.hands[0]["palm_position"] for f in recorded if f.hands)
     frames.wait(lambda m: m["hands"] and m["hands"][0]["palm_position"] == first_palm)
     time.sleep(4.5)
-    with frames.lock:
-        items = list(frames.items)
+    items = frames.arrivals()
     palms = [(t, m["hands"][0]["palm_position"]) for t, m in items if m["hands"]]
     wanted = [f.hands[0]["palm_position"] for f in recorded if f.hands]
     start = [p for _, p in palms].index(first_palm)
