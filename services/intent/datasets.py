@@ -20,6 +20,20 @@ D5 is D4 with the scene's object order shuffled in every observation (the paper'
 fixed-slot M5 fell from 97.4 % to 92.6 %); with the same seed, D5 holds exactly D4's
 observations, shuffled.
 
+**Repairable intents** (``repairable=True``; not in the paper): step 2 also draws the
+(action, object) pairs that are infeasible only through preconditions the planner repairs
+(`cbgo.services.intent.decide.REPAIRABLE`: a closed drawer it opens, a held object it places
+first) and that are feasible once those repairs are applied to the scene
+(`decide.after_repairs`: a held object with no free place on the table cannot be set aside).
+The intent is uniform over the feasible and the repairable pairs together. Step 4 reads the
+table in the target's state after the repairs, the state in which the request is feasible: put
+into a closed drawer gets the open drawer's gesture (D4: user1 ``five``, user2 ``point``);
+pick up while holding something gets the target's own entry (setting the held object aside
+does not change the target). The assumption behind it: a person whose robot runs the planner
+asks for the goal with the gesture they use for that goal, not for the repairs. Without
+``repairable`` (the default) the paper's datasets are unchanged: a seed gives the same
+observations as before the option existed.
+
 File format (``cbgo dataset make``): a NumPy ``.npz`` (no pickles; load with
 ``allow_pickle=False``), N observations, objects padded to K = 7 slots in scene order:
 
@@ -38,10 +52,14 @@ array                     dtype      meaning
 ``obj_name``              U  (N,K)   object name ('' for empty slots)
 ``feasible``              ?  (N,A,K) action × slot feasible in the scene (moves and place:
                                      the same for every object)
+``repairable``            ?  (N,A,K) action × slot infeasible, but feasible after the
+                                     planner's repairs (`decide.after_repairs`)
+``repaired``              ?  (N,)    the intent is one of those (only with ``repairable``)
 ``action``                i1 (N,)    the intended action, index into ``meta.actions``
 ``target``                i1 (N,)    the intended object's slot
 ``gesture``               i1 (N,)    the table's gesture, index into ``meta.gestures``
-``meta``                  U  ()      JSON: dataset, seed, n, the vocabularies, noise, σ
+``meta``                  U  ()      JSON: dataset, seed, n, repairable, the vocabularies,
+                                     noise, σ
 ========================  =========  =======================================================
 """
 
@@ -59,6 +77,7 @@ from typing import Any
 import numpy as np
 
 from cbgo.errors import ConfigError
+from cbgo.services.intent.decide import after_repairs
 from cbgo.wire import ACTIONS, OBJECT_TYPES
 from cbgo.world import DEFAULT_GRID, OBJECT_AGNOSTIC, Grid, Scene, feasible, random_scene
 
@@ -123,6 +142,7 @@ class Sample:
         action: the intended action.
         target: the intended (or, for moves and place, looked-at) object's name.
         gesture: the gesture the table gave.
+        repaired: the intent is infeasible in `scene` and needs the planner's repairs.
     """
 
     scene: Scene
@@ -132,6 +152,7 @@ class Sample:
     action: str
     target: str
     gesture: str
+    repaired: bool = False
 
 
 def check_name(name: str) -> str:
@@ -141,11 +162,13 @@ def check_name(name: str) -> str:
     return name
 
 
-def intent_pairs(scene: Scene, grid: Grid = DEFAULT_GRID) -> list[tuple[str, str]]:
-    """Returns the feasible (action, object) pairs a dataset draws from.
+def intent_pairs(scene: Scene, grid: Grid = DEFAULT_GRID,
+                 repairable: bool = False) -> list[tuple[str, str]]:
+    """Returns the (action, object) pairs a dataset draws from: the feasible ones.
 
     Moves and place pair with every object when they are feasible at all; objects hidden in a
-    closed drawer are never targets (no action needing an object is feasible on them anyway).
+    closed drawer are never targets (a focus cannot tell them from their drawer). With
+    `repairable`, the pairs the planner makes feasible (`after_repairs`) are added.
     """
     visible = [name for name in scene.names if not scene.is_hidden(name)]
     out = []
@@ -153,10 +176,23 @@ def intent_pairs(scene: Scene, grid: Grid = DEFAULT_GRID) -> list[tuple[str, str
         if action in OBJECT_AGNOSTIC:
             if feasible(action, None, scene, grid=grid):
                 out += [(action, name) for name in visible]
-        else:
-            out += [(action, name) for name in visible if feasible(action, name, scene,
-                                                                   grid=grid)]
+            continue
+        for name in visible:
+            if feasible(action, name, scene, grid=grid) or (
+                    repairable and after_repairs(action, name, scene, grid) is not None):
+                out.append((action, name))
     return out
+
+
+def gesture_context(action: str, target: str, scene: Scene,
+                    grid: Grid = DEFAULT_GRID) -> tuple[int, bool]:
+    """Returns the target's state bit in which `action` is feasible, and whether it needs repairs.
+
+    The state after the planner's repairs when the action is repairable (a closed drawer counts
+    as open), else the target's state in `scene`.
+    """
+    repaired = None if action in OBJECT_AGNOSTIC else after_repairs(action, target, scene, grid)
+    return (repaired or scene).state_bit(target), repaired is not None
 
 
 def gesture_vector(gesture: str, gestures: Sequence[str], rng: np.random.Generator,
@@ -171,7 +207,8 @@ def gesture_vector(gesture: str, gestures: Sequence[str], rng: np.random.Generat
 def draw(name: str, rng: np.random.Generator, tables: Tables | None = None,
          users: Sequence[str] | None = None, grid: Grid = DEFAULT_GRID,
          focus_sigma_cells: float = FOCUS_SIGMA_CELLS,
-         shuffle_rng: np.random.Generator | None = None) -> Sample | None:
+         shuffle_rng: np.random.Generator | None = None,
+         repairable: bool = False) -> Sample | None:
     """Draws one observation of dataset `name`; None when the draw is discarded.
 
     Args:
@@ -183,17 +220,19 @@ def draw(name: str, rng: np.random.Generator, tables: Tables | None = None,
         focus_sigma_cells: focus noise per axis, in grid cells.
         shuffle_rng: D5's object-order shuffles (default: `rng`); a separate generator keeps
             D5 the very observations of D4 with the same seed, shuffled.
+        repairable: also draw intents the planner makes feasible (see the module docstring).
     """
     tables = tables or load_tables()
     users = list(users or tables.users)
     scene = random_scene(rng, grid)
     user = users[rng.integers(len(users))]
-    pairs = intent_pairs(scene, grid)
+    pairs = intent_pairs(scene, grid, repairable)
     if not pairs:
         return None
     action, target = pairs[rng.integers(len(pairs))]
     obj = scene.get(target)
-    gesture = tables.gesture(name, action, obj.type, scene.state_bit(target), user)
+    state, repaired = gesture_context(action, target, scene, grid)
+    gesture = tables.gesture(name, action, obj.type, state, user)
     if gesture is None:
         return None
     focus = np.asarray(obj.position) + rng.normal(0.0, focus_sigma_cells * grid.cell_size, 3)
@@ -201,7 +240,7 @@ def draw(name: str, rng: np.random.Generator, tables: Tables | None = None,
     if name == "D5":
         order = (shuffle_rng or rng).permutation(len(scene.objects))
         scene.objects = [scene.objects[i] for i in order]
-    return Sample(scene, user, g, focus, action, target, gesture)
+    return Sample(scene, user, g, focus, action, target, gesture, repaired)
 
 
 def samples(name: str, n: int, seed: int, **kwargs: Any) -> Iterator[Sample]:
@@ -211,7 +250,7 @@ def samples(name: str, n: int, seed: int, **kwargs: Any) -> Iterator[Sample]:
         name: D1-D5.
         n: how many.
         seed: the random seed (the same seed gives the same observations).
-        **kwargs: passed to `draw` (tables, users, grid, focus_sigma_cells).
+        **kwargs: passed to `draw` (tables, users, grid, focus_sigma_cells, repairable).
     """
     check_name(name)
     rng = np.random.default_rng(seed)
@@ -285,6 +324,7 @@ def scene_arrays(scene: Scene, k: int, grid: Grid = DEFAULT_GRID) -> dict[str, n
            "obj_pos": np.zeros((k, 3), np.float32),
            "obj_name": np.full(k, "", dtype="<U32"),
            "feasible": np.zeros((len(ACTIONS), k), bool),
+           "repairable": np.zeros((len(ACTIONS), k), bool),
            "n_objects": np.int8(len(scene.objects))}
     for slot, obj in enumerate(scene.objects):
         out["obj_type"][slot] = OBJECT_TYPES.index(obj.type)
@@ -297,9 +337,11 @@ def scene_arrays(scene: Scene, k: int, grid: Grid = DEFAULT_GRID) -> dict[str, n
     for a, action in enumerate(ACTIONS):
         if action in OBJECT_AGNOSTIC:
             out["feasible"][a, :n] = feasible(action, None, scene, grid=grid)
-        else:
-            out["feasible"][a, :n] = [feasible(action, o.name, scene, grid=grid)
-                                      for o in scene.objects]
+            continue
+        for slot, obj in enumerate(scene.objects):
+            out["feasible"][a, slot] = feasible(action, obj.name, scene, grid=grid)
+            out["repairable"][a, slot] = not out["feasible"][a, slot] and after_repairs(
+                action, obj.name, scene, grid) is not None
     return out
 
 
@@ -318,6 +360,7 @@ def to_dataset(items: Sequence[Sample], meta: dict[str, Any] | None = None,
         action=np.array([ACTIONS.index(s.action) for s in items], np.int8),
         target=np.array([s.scene.names.index(s.target) for s in items], np.int8),
         gesture=np.array([tables.gestures.index(s.gesture) for s in items], np.int8),
+        repaired=np.array([s.repaired for s in items], bool),
     )
     base = {"format": FORMAT, "gestures": list(tables.gestures), "users": list(tables.users),
             "actions": list(ACTIONS), "object_types": list(OBJECT_TYPES), "max_objects": k,
@@ -326,7 +369,8 @@ def to_dataset(items: Sequence[Sample], meta: dict[str, Any] | None = None,
     return Dataset(arrays, {**base, **(meta or {})})
 
 
-def make(name: str, n: int, seed: int = 0, progress: bool = False, **kwargs: Any) -> Dataset:
+def make(name: str, n: int, seed: int = 0, progress: bool = False, repairable: bool = False,
+         **kwargs: Any) -> Dataset:
     """Generates dataset `name` with n observations from `seed`.
 
     Args:
@@ -334,11 +378,12 @@ def make(name: str, n: int, seed: int = 0, progress: bool = False, **kwargs: Any
         n: number of observations.
         seed: random seed.
         progress: show a tqdm bar.
+        repairable: also draw intents the planner makes feasible (see the module docstring).
         **kwargs: passed to `draw` (users, grid, focus_sigma_cells).
     """
     from tqdm import tqdm
 
-    items = list(tqdm(samples(name, n, seed, **kwargs), total=n, desc=f"generating {name}",
-                      disable=not progress, leave=False))
+    items = list(tqdm(samples(name, n, seed, repairable=repairable, **kwargs), total=n,
+                      desc=f"generating {name}", disable=not progress, leave=False))
     return to_dataset(items, {"dataset": check_name(name), "seed": seed, "n": n,
-                              "shuffled_objects": name == "D5"})
+                              "shuffled_objects": name == "D5", "repairable": repairable})

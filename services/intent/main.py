@@ -47,9 +47,9 @@ class IntentSettings:
         "shipped services/intent/models/ours"))
     min_confidence: float = field(default=0.5, metadata=_help(
         "below this probability the best feasible intent is low_confidence and not acted on"))
-    accept_repairable: bool = field(default=False, metadata=_help(
+    accept_repairable: bool = field(default=True, metadata=_help(
         "let intents compete whose unmet preconditions the planner repairs (a closed drawer, a "
-        "full gripper)"))
+        "full gripper); --no-accept-repairable for a robot without the planner"))
     pour_angle_deg: float = field(default=90.0, metadata=_help(
         "pour angle when the episode gives none, degrees"))
     posterior_samples: int = field(default=32, metadata=_help(
@@ -101,7 +101,8 @@ class Intent(Service):
         personal = None
         if s.personalise:
             root = Path(s.personal_dir) if s.personal_dir else data_dir() / "intent"
-            personal = PersonalStore(root, model, s.default_profile, s.update_steps)
+            personal = PersonalStore(root, model, s.default_profile, s.update_steps,
+                                     accept_repairable=s.accept_repairable)
         self.engine = IntentEngine(model, DecisionConfig(s.min_confidence, s.accept_repairable,
                                                          s.pour_angle_deg),
                                    personal, s.posterior_samples, s.default_profile)

@@ -14,8 +14,9 @@ model from the default one and all of that user's corrections, in two stages:
 2. **Fine-tuning**, only if some correction is still decided wrongly: a copy of the default
    networks is trained further (the same tempered ELBO) on the corrections, repeated to a third
    of the data, plus a replay of the profile's synthetic data (D4 drawn for the nearest known
-   user) from which every observation is dropped whose context — target type, its state and the
-   strongest gesture — a correction redefines.
+   user, with repairable intents if the default model was trained with them, so that they are
+   not forgotten) from which every observation is dropped whose context — target type, its
+   state and the strongest gesture — a correction redefines.
 
 A correction that names no object (moves, place, or the object left open) is learnt through the
 marginal likelihood Σ_o p(object, action). A personal model is rebuilt from its feedback file
@@ -108,6 +109,11 @@ def safe_dirname(user: str) -> str:
     return f"{clean}-{bayes.data_hash(np.frombuffer(user.encode(), np.uint8))[:8]}"
 
 
+def trained_with_repairs(model: OursModel) -> bool:
+    """Returns whether a model's training data held repairable intents (``--repairable``)."""
+    return bool(model.meta.get("trained_on", {}).get("repairable", False))
+
+
 def fingerprint(model: OursModel) -> str:
     """Returns a short hash of a model's weights (which default model a personal one extends)."""
     return bayes.data_hash(*[p.detach().numpy() for p in model.net.state_dict().values()])
@@ -123,11 +129,15 @@ class PersonalStore:
         steps: fine-tuning gradient steps per update.
         replay: replay observations for fine-tuning.
         seed: random seed of the replay and the training.
+        accept_repairable: the service's decision lets repairable intents compete, so a
+            correction naming one is explained once the model decides it that way.
     """
 
     def __init__(self, root: Path | None, base: OursModel, default_profile: str = "user1",
-                 steps: int = 300, replay: int = REPLAY_SIZE, seed: int = 0):
+                 steps: int = 300, replay: int = REPLAY_SIZE, seed: int = 0,
+                 accept_repairable: bool = False):
         self.root, self.base = root, base
+        self.accept_repairable = accept_repairable
         self.users: list[str] = list(base.meta["users"])
         if default_profile not in self.users:
             raise ConfigError(f"default profile {default_profile!r} is not one of the model's "
@@ -191,7 +201,8 @@ class PersonalStore:
 
     def _update(self, user: str, corrections: list[Correction]) -> Personal:
         personal = personalise(self.base, corrections, self.start_vector(user), self._replay_for,
-                               steps=self.steps, seed=self.seed)
+                               steps=self.steps, seed=self.seed,
+                               accept_repairable=self.accept_repairable)
         personal.model.meta.update(user=user, base_fingerprint=self.base_fingerprint,
                                    user_vector=personal.user_vector.tolist(),
                                    stage=personal.stage, corrections=personal.corrections,
@@ -203,7 +214,8 @@ class PersonalStore:
 
     def _replay_for(self, user: str) -> datasets.Dataset:
         if user not in self._replay:
-            self._replay[user] = datasets.make("D4", self.replay, self.seed, users=[user])
+            self._replay[user] = datasets.make("D4", self.replay, self.seed, users=[user],
+                                               repairable=trained_with_repairs(self.base))
         return self._replay[user]
 
 
@@ -227,12 +239,12 @@ def correction_batch(base: OursModel, corrections: Sequence[Correction]
 
 
 def explains(model: OursModel, batch: Batch, scenes: Sequence[Scene],
-             corrections: Sequence[Correction]) -> bool:
+             corrections: Sequence[Correction], accept_repairable: bool = False) -> bool:
     """Returns whether the model now decides every correction as corrected."""
     joint = model.predict(batch, samples=16).joint
+    config = DecisionConfig(min_confidence=0.0, accept_repairable=accept_repairable)
     for i, (scene, c) in enumerate(zip(scenes, corrections, strict=True)):
-        d = decide(joint[i, :len(scene.objects)], scene.names, scene,
-                   DecisionConfig(min_confidence=0.0), c.params)
+        d = decide(joint[i, :len(scene.objects)], scene.names, scene, config, c.params)
         if d.action != c.action or (c.object is not None and d.object not in (None, c.object)):
             return False
     return True
@@ -262,7 +274,8 @@ def context_key(scene: Scene, obj: str | None, g: np.ndarray) -> tuple | None:
 
 
 def personalise(base: OursModel, corrections: Sequence[Correction], start: np.ndarray,
-                replay_for, steps: int = 300, seed: int = 0) -> Personal:
+                replay_for, steps: int = 300, seed: int = 0,
+                accept_repairable: bool = False) -> Personal:
     """Returns the personal model that explains `corrections` (see the module docstring).
 
     Args:
@@ -272,10 +285,11 @@ def personalise(base: OursModel, corrections: Sequence[Correction], start: np.nd
         replay_for: known user name -> its replay `Dataset` (D4), for fine-tuning.
         steps: fine-tuning gradient steps.
         seed: training seed.
+        accept_repairable: decide as the service does (see `PersonalStore`).
     """
     batch, action, target, scenes = correction_batch(base, corrections)
     user = fit_user_vector(base, batch, action, target, start)
-    if explains(base, batch.with_user(user), scenes, corrections):
+    if explains(base, batch.with_user(user), scenes, corrections, accept_repairable):
         return Personal(base.copy(), user, "profile", len(corrections))
     model = base.copy()
     profile = base.meta["users"][int(np.argmax(user))]

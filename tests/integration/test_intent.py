@@ -67,6 +67,21 @@ def test_infer_answers_valid_queries_and_gives_error_replies_to_bad_ones(stack, 
     assert status["counters"]["rejected"] == 2 and status["model"] == "intent-ours-1"
 
 
+def test_by_default_the_service_accepts_put_into_a_closed_drawer(stack, tmp_path):
+    from cbgo.services.intent.evaluate import demo_scene
+
+    start_intent(stack, tmp_path)
+    scene = demo_scene()  # the robot holds full cup1; drawer1 is closed
+    query = example("intent/infer", "query", gestures={"names": ["five"], "probs": [0.9]},
+                    scene=scene.to_dict(), focus=list(scene.get("drawer1").position),
+                    user="user1")
+    (ok, reply), = stack.query("cbgo/intent/infer", query)
+    assert ok, reply
+    assert (reply["status"], reply["action"], reply["object"]) == ("accepted", "put_into",
+                                                                   "drawer1")
+    assert stack.status("intent")["config"]["settings"]["accept_repairable"] is True
+
+
 def test_a_summary_becomes_an_intent_and_cbgo_feedback_corrects_it(stack, tmp_path):
     start_intent(stack, tmp_path)
     intents = Collector(stack, "intent")

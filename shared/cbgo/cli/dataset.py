@@ -1,12 +1,15 @@
 """Generate the paper's synthetic intent datasets D1–D5 as documented ``.npz`` files.
 
 D1–D4 follow the paper's decision tables (``cbgo/data/gesture_tables.json``); D5 is D4 with the
-object order shuffled. The file format is documented in ``cbgo.services.intent.datasets``
-(NumPy arrays, no pickles: ``np.load(path, allow_pickle=False)``).
+object order shuffled. ``--repairable`` also draws intents whose unmet preconditions the planner
+repairs (put into a closed drawer, pick up while holding), not in the paper. The file format
+and the rules are documented in ``cbgo.services.intent.datasets`` (NumPy arrays, no pickles:
+``np.load(path, allow_pickle=False)``).
 
 Examples::
 
     cbgo dataset make D4 -n 4000 --seed 0 -o d4.npz
+    cbgo dataset make D4 -n 4000 --repairable -o d4-repairable.npz
     cbgo dataset make D5 -n 2000 --seed 1 -o /tmp/d5-test.npz
     cbgo dataset info d4.npz
 """
@@ -32,6 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     make.add_argument("-n", "--samples", type=int, default=4000, help="observations [4000]")
     make.add_argument("--seed", type=int, default=0, help="random seed [0]")
     make.add_argument("-o", "--out", type=Path, required=True, help="output file (.npz)")
+    make.add_argument("--repairable", action="store_true",
+                      help="also draw intents the planner makes feasible (not in the paper)")
     info = sub.add_parser("info", help="summarise a dataset file")
     info.add_argument("file", type=Path, help="a file written by `cbgo dataset make`")
 
@@ -42,9 +47,11 @@ def run(args: argparse.Namespace) -> int:
     if args.command == "make":
         if args.samples < 1:
             fail("-n must be at least 1", 2)
-        ds = datasets.make(args.name, args.samples, args.seed, progress=True)
+        ds = datasets.make(args.name, args.samples, args.seed, progress=True,
+                           repairable=args.repairable)
         path = ds.save(args.out)
-        print(f"wrote {path}: {args.name}, {len(ds)} observations, seed {args.seed}")
+        extra = f", {int(ds.repaired.sum())} needing repairs" if args.repairable else ""
+        print(f"wrote {path}: {args.name}, {len(ds)} observations, seed {args.seed}{extra}")
         return 0
     try:
         ds = datasets.Dataset.load(args.file)
@@ -53,7 +60,10 @@ def run(args: argparse.Namespace) -> int:
     meta = ds.meta
     counts = Counter(meta["actions"][a] for a in ds.action)
     print(f"{args.file}: {meta.get('dataset')} ({meta.get('n')} observations, seed "
-          f"{meta.get('seed')}, objects shuffled: {meta.get('shuffled_objects')})")
+          f"{meta.get('seed')}, objects shuffled: {meta.get('shuffled_objects')}, repairable "
+          f"intents: {meta.get('repairable', False)})")
+    if "repaired" in ds.arrays:
+        print(f"intents needing the planner's repairs: {int(ds.repaired.sum())}")
     print("actions: " + ", ".join(f"{a} {counts[a]}" for a in meta["actions"]))
     print("arrays: " + ", ".join(f"{k} {v.dtype}{list(v.shape)}" for k, v in ds.arrays.items()))
     return 0

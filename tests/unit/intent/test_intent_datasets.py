@@ -104,3 +104,93 @@ def test_cbgo_dataset_make_writes_a_file_that_info_describes(tmp_path, capsys):
         main(["dataset", "info", str(path)])
     out = capsys.readouterr().out
     assert shown.value.code == 0 and "D2 (25 observations, seed 4" in out and "g float32" in out
+
+
+# ---------------------------------------------------------------- repairable intents
+
+
+def test_the_repair_rule_opens_closed_drawers_and_sets_held_objects_aside():
+    from cbgo.services.intent.decide import after_repairs
+    from cbgo.services.intent.evaluate import demo_scene
+
+    holding = demo_scene()  # full cup1 in the gripper, drawer1 closed
+    opened = after_repairs("put_into", "drawer1", holding)
+    assert opened is not None and opened.get("drawer1").open and not holding.get("drawer1").open
+    set_aside = after_repairs("pick_up", "cup2", holding)
+    assert set_aside is not None and set_aside.robot.holding is None
+    empty = demo_scene(holding=None)
+    assert after_repairs("put_into", "drawer1", empty) is None  # nothing to put in: no repair
+    assert after_repairs("pick_up", "cup2", empty) is None  # feasible: nothing to repair
+    assert after_repairs("pour", "cup1", holding) is None  # the held cup: not repairable
+    assert ("put_into", "drawer1") not in datasets.intent_pairs(holding)
+    assert ("put_into", "drawer1") in datasets.intent_pairs(holding, repairable=True)
+    assert datasets.gesture_context("put_into", "drawer1", holding) == (1, True)
+    assert datasets.gesture_context("open", "drawer1", holding) == (0, False)
+
+
+def test_a_full_closed_drawer_is_not_repairable():
+    from cbgo.services.intent.decide import after_repairs
+    from cbgo.services.intent.evaluate import demo_scene
+    from cbgo.world import SceneObject
+
+    scene = demo_scene()
+    scene.objects.append(SceneObject("box2", "box", (0, 0, 0), 0.05, inside="drawer1"))
+    scene.settle()
+    assert scene.problems() == []
+    assert after_repairs("put_into", "drawer1", scene) is None  # drawer_full has no repair
+    assert ("put_into", "drawer1") not in datasets.intent_pairs(scene, repairable=True)
+
+
+def test_repairable_draws_read_the_table_in_the_state_the_planner_makes():
+    from cbgo.services.intent.decide import REPAIRABLE
+    from cbgo.world import failures
+
+    tables = datasets.load_tables()
+    items = list(datasets.samples("D4", 1500, seed=40, repairable=True))
+    repaired = [s for s in items if s.repaired]
+    assert {"put_into", "pick_up"} <= {s.action for s in repaired}
+    assert 0.01 < len(repaired) / len(items) < 0.2
+    for s in items:
+        found = failures(s.action, s.target, s.scene)
+        assert s.repaired == bool(found) and {f.code for f in found} <= REPAIRABLE
+        assert (s.action, s.target) in datasets.intent_pairs(s.scene, repairable=True)
+    for s in repaired:
+        target = s.scene.get(s.target)
+        if s.action == "put_into":  # a closed drawer gets the open drawer's gesture
+            assert not target.open and s.scene.robot.holding is not None
+            assert s.gesture == tables.gesture("D4", "put_into", "drawer", 1, s.user)
+        else:  # pick up while holding: the target's own entry
+            assert s.scene.robot.holding not in (None, s.target)
+            assert s.gesture == tables.gesture("D4", "pick_up", target.type,
+                                               s.scene.state_bit(s.target), s.user)
+
+
+def test_without_the_option_nothing_needs_repairs_and_the_arrays_say_which_would():
+    plain = datasets.make("D4", 400, seed=41)
+    assert plain.meta["repairable"] is False and not plain.repaired.any()
+    rows = np.arange(len(plain))
+    assert plain.feasible[rows, plain.action, plain.target].all()
+    assert plain.repairable.any() and not (plain.repairable & plain.feasible).any()
+    mixed = datasets.make("D4", 1500, seed=40, repairable=True)
+    assert mixed.meta["repairable"] is True and mixed.repaired.sum() > 10
+    rows = np.arange(len(mixed))
+    hit_feasible = mixed.feasible[rows, mixed.action, mixed.target]
+    hit_repairable = mixed.repairable[rows, mixed.action, mixed.target]
+    assert np.array_equal(hit_repairable, mixed.repaired)
+    assert np.array_equal(hit_feasible, ~mixed.repaired)
+
+
+def test_cbgo_dataset_make_repairable_records_it(tmp_path, capsys):
+    from cbgo.cli.main import main
+
+    path = tmp_path / "d4r.npz"
+    with pytest.raises(SystemExit) as made:
+        main(["dataset", "make", "D4", "-n", "300", "--seed", "3", "--repairable", "-o",
+              str(path)])
+    ds = datasets.Dataset.load(path)
+    assert made.value.code == 0 and ds.meta["repairable"] is True
+    with pytest.raises(SystemExit):
+        main(["dataset", "info", str(path)])
+    out = capsys.readouterr().out
+    assert "repairable intents: True" in out
+    assert f"intents needing the planner's repairs: {int(ds.repaired.sum())}" in out

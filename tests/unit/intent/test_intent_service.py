@@ -159,3 +159,33 @@ def test_a_correction_that_cannot_apply_is_refused_and_counted(bus):
     bus.feed(keys.INTENT_FEEDBACK, example("intent/feedback", user="dora", object="cup9"))
     status = bus.query("status", {})[1]
     assert status["feedback"] == {"stored": 0, "refused": 3} and bus.counters.errors == 0
+
+
+def put_into_closed_drawer(user="user1", gesture="five"):
+    """The demo: the robot holds full cup1, the person looks at the closed drawer1."""
+    from cbgo.services.intent.evaluate import demo_scene
+
+    scene = demo_scene()
+    return query(gestures={"names": [gesture], "probs": [0.9]}, scene=scene.to_dict(),
+                 focus=list(scene.get("drawer1").position), user=user)
+
+
+@pytest.mark.parametrize("user, gesture", [("user1", "five"), ("user2", "point")])
+def test_by_default_put_into_a_closed_drawer_is_accepted_for_the_planner(bus, user, gesture):
+    assert IntentSettings().accept_repairable is True
+    ok, reply = bus.query(keys.INTENT_INFER, put_into_closed_drawer(user, gesture))
+    assert ok, reply
+    assert (reply["status"], reply["action"], reply["object"]) == ("accepted", "put_into",
+                                                                   "drawer1")
+    assert "the planner repairs: drawer1 is closed" in reply["reason"]
+
+
+def test_no_accept_repairable_refuses_put_into_a_closed_drawer(tmp_path):
+    bus = FakeBus(Intent(IntentSettings(personal_dir=str(tmp_path / "p"),
+                                        accept_repairable=False)))
+    try:
+        ok, reply = bus.query(keys.INTENT_INFER, put_into_closed_drawer())
+        assert ok and (reply["status"], reply["action"]) == ("infeasible", None)
+        assert "drawer1 is closed" in reply["reason"]
+    finally:
+        bus.stop()
