@@ -31,7 +31,7 @@ def observed(ended=T0 + 1.0, summary_delay=0.005, intent_delay=0.03, status="acc
     summary = {"episode": "ep-1", "started": T0 + 0.5, "ended": ended, "ts": end + 0.002}
     seen.summaries["ep-1"] = (end + summary_delay, summary)
     intent = {"episode": "ep-1", "ts": end + intent_delay - 0.001, "status": status,
-              "action": action, "object": "cup1", "reason": ""}
+              "action": action, "object": "cup1", "reason": "", "confidence": 0.9}
     seen.intents["ep-1"] = (end + intent_delay, intent)
     seen.plans["ep-1"] = (end + 0.2, {"state": "success", "error": None})
     return seen
