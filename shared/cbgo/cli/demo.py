@@ -16,7 +16,9 @@ as scripted, 2 on a usage or start-up error.
 
 ``--robot dry`` swaps mujoco-sim for dry-robot (no physics, no MuJoCo needed). ``--faults all``
 kills each service and the router once mid-session (SIGKILL) and reports how each came back;
-``--no-start`` runs the session against services already running elsewhere (``--connect``).
+``--no-start`` runs the session against services already running elsewhere (``--connect``);
+personal intent models of user1/user2 stored there (`cbgo feedback`) can change the outcomes,
+which is why the demo's own services get a fresh ``CBGO_DATA_DIR`` in the output folder.
 
 Examples::
 
@@ -116,11 +118,8 @@ def _start_system(args: argparse.Namespace, robot: str, out: Path) -> subprocess
         fail(f"{args.router_listen} is in use: is `cbgo up` already running? Run the session "
              "against it with --no-start, or give the demo another --router-listen "
              "(e.g. tcp/127.0.0.1:7448)", 2)
-    env = {**os.environ,
-           # The story puts a cup into a closed drawer: the planner repairs that.
-           "CBGO_ACCEPT_REPAIRABLE": "true",
-           # Users' personal intent models would change the scripted outcomes.
-           "CBGO_DATA_DIR": str(out / "data")}
+    # Users' personal intent models (from earlier corrections) would change the outcomes.
+    env = {**os.environ, "CBGO_DATA_DIR": str(out / "data")}
     argv = [sys.executable, "-m", "cbgo.cli.main", "up", "--no-color", "--router-listen",
             args.router_listen, "--connect", args.router_listen, *PIPELINE, robot]
     log = open(out / "services.log", "wb")  # noqa: SIM115 - the child owns it from here
@@ -248,6 +247,8 @@ def _session_body(args, runner, inbox, script, robot, out, say, started):
                         f"{out / 'services.log'})")
     ready_s = time.monotonic() - started
     say(f"ready: {', '.join(sorted(expected))} alive after {ready_s:.1f} s")
+    if args.no_start:
+        _check_intent_settings(runner, say)
     runner.reset(script.scene)
     say(f"the world is reset to the '{script.name}' scene: "
         + ", ".join(f"{o['name']} ({o['type']})" for o in script.scene["objects"]))
@@ -257,6 +258,15 @@ def _session_body(args, runner, inbox, script, robot, out, say, started):
     session_s = time.time() - runner.t0
     _render(runner, out / "after.png", say)
     return results, {"ready_s": ready_s, "session_s": session_s}
+
+
+def _check_intent_settings(runner, say) -> None:
+    """Warns about intent settings of a running system that change the scripted outcomes."""
+    status = runner.status("intent") or {}
+    config = status.get("config", {})
+    if config.get("accept_repairable") is False:
+        say("warning: intent runs with --no-accept-repairable: intents whose preconditions "
+            "the planner repairs (a cup into a closed drawer) will be refused")
 
 
 def _plot_episode(results, step: int) -> str | None:
