@@ -3,7 +3,6 @@ recorded by demonstration that the running service picks up."""
 
 import subprocess
 import sys
-import threading
 import time
 from collections import Counter, defaultdict
 
@@ -19,32 +18,6 @@ from cbgo.wire import STATIC_GESTURES
 CLI = [sys.executable, "-m", "cbgo.cli.main"]
 
 
-class Collector:
-    """Collects decoded messages on a key from the test's own session."""
-
-    def __init__(self, stack, suffix):
-        self.items = []
-        self.lock = threading.Lock()
-        stack.session().declare_subscriber(stack.keys.resolve(suffix), self._on)
-
-    def _on(self, sample):
-        with self.lock:
-            self.items.append(wire.decode(sample.payload.to_bytes()))
-
-    def all(self):
-        with self.lock:
-            return list(self.items)
-
-    def wait(self, predicate, timeout=20.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            found = [m for m in self.all() if predicate(m)]
-            if found:
-                return found
-            time.sleep(0.05)
-        raise AssertionError(f"no matching message within {timeout} s")
-
-
 def winner(message):
     return message["names"][int(np.argmax(message["probs"]))]
 
@@ -57,7 +30,7 @@ def test_every_static_gesture_streamed_by_leap_bridge_wins_the_frames_where_it_i
     last_palm = simulated[-1].hands[0]["palm_position"]
     stack.start_router()
     stack.wait_alive(["router"])
-    frames, gestures = Collector(stack, "hands/frame"), Collector(stack, "gestures/static")
+    frames, gestures = stack.collect("hands/frame"), stack.collect("gestures/static")
     stack.start_service("static-gesture")
     stack.wait_alive(["static-gesture"], timeout=60)
     stack.start_service("leap-bridge", "--scenario", "static-all", "--rate-hz", str(rate),
@@ -67,9 +40,9 @@ def test_every_static_gesture_streamed_by_leap_bridge_wins_the_frames_where_it_i
                 timeout=duration + 60)
     time.sleep(1.0)  # the last gestures are on their way
     labels = {m["seq"]: label_of.get(tuple(m["hands"][0]["palm_position"]))
-              for m in frames.all() if m["hands"]}
+              for m in frames.items() if m["hands"]}
     by_hand = defaultdict(list)  # each episode's hand enters with a new id
-    for m in gestures.all():
+    for m in gestures.items():
         by_hand[m["hand_id"]].append(m)
     assert len(by_hand) == len(STATIC_GESTURES), sorted(by_hand)
     for gesture, hand_id in zip(STATIC_GESTURES, sorted(by_hand), strict=True):
@@ -134,10 +107,10 @@ def test_a_gesture_recorded_by_demonstration_is_served_without_a_code_change(sta
         env={**stack.env(), **env}, capture_output=True, text=True, timeout=240)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "static-gesture now serves static-bnn-" in result.stdout, result.stdout
-    gestures = Collector(stack, "gestures/static")
+    gestures = stack.collect("gestures/static")
     gestures.wait(lambda m: "horns" in m["names"], timeout=20)
     time.sleep(1.0)
-    served = [m for m in gestures.all() if "horns" in m["names"]]
+    served = [m for m in gestures.items() if "horns" in m["names"]]
     wins = Counter(map(winner, served))
     assert wins["horns"] > 0.8 * len(served), wins
     status = stack.status("static-gesture")["model"]
