@@ -3,7 +3,6 @@ gesture wins; a still hand gives no gesture; a gesture taught with `cbgo gesture
 published after the reload."""
 
 import sys
-import threading
 import time
 
 import numpy as np
@@ -14,24 +13,6 @@ from cbgo.simuser.scenario import load_scenario
 from cbgo.testing import Stack
 
 CLI = [sys.executable, "-m", "cbgo.cli.main"]
-
-
-class Collector:
-    """Collects decoded messages on a key from the test's own session."""
-
-    def __init__(self, stack, suffix):
-        self.items = []
-        self.lock = threading.Lock()
-        self.sub = stack.session().declare_subscriber(stack.keys.resolve(suffix), self._on)
-
-    def _on(self, sample):
-        with self.lock:
-            self.items.append(wire.decode(sample.payload.to_bytes()))
-
-    def take(self):
-        with self.lock:
-            out, self.items = self.items, []
-        return out
 
 
 @pytest.fixture(scope="module")
@@ -66,10 +47,10 @@ def winner(msg):
 
 def test_each_simulated_stroke_is_published_with_its_gesture_winning(running):
     stack, _ = running
-    out = Collector(stack, "gestures/dynamic")
+    out = stack.collect("gestures/dynamic")
     time.sleep(0.3)
     time.sleep(play(stack, {"scenario": "dynamic-all"}) + 1.5)
-    messages = out.take()
+    messages = out.items()
     for msg in messages:
         wire.validate(msg, wire.GESTURES_DYNAMIC, "cbgo/gestures/dynamic")
     expected = [s.gesture for e in load_scenario("dynamic-all").episodes for s in e.gestures]
@@ -79,10 +60,10 @@ def test_each_simulated_stroke_is_published_with_its_gesture_winning(running):
 
 def test_a_hand_held_still_gives_no_gesture(running):
     stack, _ = running
-    out = Collector(stack, "gestures/dynamic")
+    out = stack.collect("gestures/dynamic")
     time.sleep(0.3)
     time.sleep(play(stack, {"scenario": "still"}) + 1.0)
-    assert [winner(m) for m in finals(out.take()) if winner(m) != "none"] == []
+    assert [winner(m) for m in finals(out.items()) if winner(m) != "none"] == []
 
 
 def test_a_gesture_taught_with_cbgo_gestures_record_is_published_after_the_reload(running):
@@ -90,18 +71,15 @@ def test_a_gesture_taught_with_cbgo_gestures_record_is_published_after_the_reloa
     recorder = stack.spawn("record", [*CLI, "gestures", "record", "lift", "--dynamic",
                                       "--takes", "3", "--user", "tester", "--timeout", "60"],
                            env={"CBGO_DATA_DIR": str(data)})
-    deadline = time.monotonic() + 30
-    while "recording 3 take" not in recorder.log():  # subscribed: takes can start
-        assert time.monotonic() < deadline and recorder.popen.poll() is None, recorder.log()
-        time.sleep(0.1)
+    recorder.wait_for_line("recording 3 take", timeout=30)  # subscribed: takes can start
     play(stack, {"episodes": [{"gestures": ["swipe_up"], "pause_s": 0.3}] * 3, "seed": 5})
     assert recorder.wait(60) == 0, recorder.log()
     assert "dynamic-gesture reloaded" in recorder.log()
     assert (data / "gestures" / "dynamic" / "lift.json").exists()
-    out = Collector(stack, "gestures/dynamic")
+    out = stack.collect("gestures/dynamic")
     time.sleep(0.3)
     time.sleep(play(stack, {"episodes": [{"gestures": ["swipe_up"], "pause_s": 0.3}]}) + 1.0)
-    last = finals(out.take())
+    last = finals(out.items())
     assert last and all("lift" in m["names"] for m in last)
     won = [winner(m) for m in last if winner(m) != "none"]
     assert len(won) == 1 and won[0] in ("lift", "swipe_up"), [winner(m) for m in last]
