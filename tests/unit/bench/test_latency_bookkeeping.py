@@ -122,3 +122,46 @@ def test_goals_are_met_or_missed_at_their_limits():
     assert not missed["end_condition_to_intent"]["met"]
     assert not missed["last_hand_frame_to_intent"]["met"]
     assert missed["frame_to_static"]["met"] is None  # no goal given for it
+
+
+class FakeStack:
+    """Answers the driver's queries like a robot would; records them."""
+
+    def __init__(self):
+        from cbgo.keys import Keys
+
+        self.keys, self.queries = Keys("cbgo"), []
+
+    def query(self, key, message, timeout=5.0):
+        self.queries.append((key, message))
+        return [(True, {"v": 1, "ok": True, "error": None, "scene": message.get("scene")})]
+
+
+class FakeTap:
+    def __init__(self, seen):
+        self.seen = seen
+
+
+@pytest.mark.parametrize(("action", "plan", "reset"), [
+    ("pick_up", "success", False),   # as asked: the robot now holds the cup, no reset
+    ("pour", "success", True),       # another intent than asked: the world is reset
+    ("pick_up", "failure", True),    # the plan failed: the world is reset
+])
+def test_the_driver_resets_the_world_after_an_episode_that_went_astray(action, plan, reset,
+                                                                       monkeypatch):
+    import argparse
+
+    from cbgo.bench.latency import SCENE, Driver
+
+    monkeypatch.setattr("time.sleep", lambda s: None)
+    seen = observed(action=action)
+    seen.plans["ep-1"] = (T0 + 2, {"state": plan, "error": None})
+    stack = FakeStack()
+    driver = Driver(stack, FakeTap(seen), argparse.Namespace())
+    episode = run()
+    assert driver._settled(episode)
+    assert episode.reset_after is reset
+    assert driver.holding is (not reset)
+    driver.reset_world_if_needed(episode)
+    assert stack.queries == ([("cbgo/sim/reset", {"v": 1, "scene": SCENE})] if reset else [])
+    assert driver.holding is (not reset)  # after a reset the gripper is empty again
