@@ -8,7 +8,6 @@ classifiers runs once those services exist.
 import importlib.util
 import json
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -30,31 +29,6 @@ THREE_EPISODES = {"name": "episode-test", "seed": 5, "episodes": [
 ]}
 
 
-class Collector:
-    """Collects decoded messages on a key from the test's own session."""
-
-    def __init__(self, stack, suffix):
-        self.items, self.lock = [], threading.Lock()
-        stack.session().declare_subscriber(stack.keys.resolve(suffix), self._on)
-
-    def _on(self, sample):
-        with self.lock:
-            self.items.append(wire.decode(sample.payload.to_bytes()))
-
-    def wait_count(self, n, timeout):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            with self.lock:
-                if len(self.items) >= n:
-                    return list(self.items)
-            time.sleep(0.05)
-        raise AssertionError(f"{len(self.items)} of {n} messages within {timeout} s")
-
-    def all(self):
-        with self.lock:
-            return list(self.items)
-
-
 def play(stack, tmp_path, scenario, episode_flags=(), gestures="scripted", extra=()):
     """Starts router, leap-bridge, episode and the gesture source; plays the scenario."""
     path = tmp_path / "scenario.json"
@@ -71,7 +45,7 @@ def play(stack, tmp_path, scenario, episode_flags=(), gestures="scripted", extra
             stack.start_service(name)
         names = list(gestures)
     stack.wait_alive(["router", "leap-bridge", "episode", *names], timeout=60)
-    collectors = {s: Collector(stack, s) for s in ("episode/summary", "episode/event", *extra)}
+    collectors = {s: stack.collect(s) for s in ("episode/summary", "episode/event", *extra)}
     time.sleep(0.3)  # let the test's subscriptions reach the router
     (ok, reply), = stack.query("cbgo/@ctl/leap-bridge/play", {"scenario": str(path)})
     assert ok, reply
@@ -92,7 +66,7 @@ def test_simulated_episodes_give_one_summary_each_with_gestures_focus_and_params
     got, duration = play(stack, tmp_path, THREE_EPISODES)
     summaries = got["episode/summary"].wait_count(3, timeout=duration + 20)
     time.sleep(0.5)
-    assert len(got["episode/summary"].all()) == 3, "one summary per episode, no more"
+    assert len(got["episode/summary"].items()) == 3, "one summary per episode, no more"
     for s in summaries:
         wire.validate(s, wire.EPISODE_SUMMARY, "cbgo/episode/summary")
     point_swipe, grab, pinch_rotate = summaries
@@ -112,7 +86,7 @@ def test_simulated_episodes_give_one_summary_each_with_gestures_focus_and_params
     assert 0.005 < pinch_rotate["params"]["distance"] < 0.04
     assert {s["user"] for s in summaries} == {"user1"}
 
-    events = got["episode/event"].all()
+    events = got["episode/event"].items()
     for s in summaries:
         kinds = [e["kind"] for e in events if e["episode"] == s["episode"]]
         assert kinds == ["start", *["trigger"] * len(s["triggers"]), "end"]
@@ -149,7 +123,7 @@ def test_without_gaze_the_focus_is_where_the_finger_points_on_the_table(stack, t
     labels = load_scripted().scenario_labels(parse_scenario(scenario), 60.0)
     to_base = default_to_base()
     rays = [hand_sample(f["ts"], f["seq"], f["hands"][0], to_base).ray
-            for f in got["hands/frame"].all()
+            for f in got["hands/frame"].items()
             if f["hands"] and labels.get(tuple(f["hands"][0]["palm_position"])) == "point"]
     assert np.linalg.norm(np.subtract(summary["focus"], pointing_focus(rays))) < 0.01
     # ... on the table near what the user looks at (the simulated user aims within ~5 cm).
@@ -166,7 +140,7 @@ def test_the_full_chain_leap_bridge_static_dynamic_episode(stack, tmp_path):
     got, duration = play(stack, tmp_path, THREE_EPISODES, gestures=FULL_CHAIN)
     summaries = got["episode/summary"].wait_count(3, timeout=duration + 30)
     time.sleep(0.5)
-    assert len(got["episode/summary"].all()) == 3
+    assert len(got["episode/summary"].items()) == 3
     point_swipe, grab, pinch_rotate = summaries
     assert {"point", "swipe_down"} <= {t["gesture"] for t in point_swipe["triggers"]}
     assert "grab" in {t["gesture"] for t in grab["triggers"]}
