@@ -18,36 +18,18 @@ CLI = [sys.executable, "-m", "cbgo.cli.main"]
 SUFFIXES = ["hands/frame", "gaze", "user", "episode/event"]
 
 
-def wait_for_line(proc, needle, timeout=20.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if needle in proc.log():
-            return
-        if proc.popen.poll() is not None:
-            break
-        time.sleep(0.05)
-    raise AssertionError(f"{needle!r} not in the log of {proc.name}:\n{proc.log()}")
-
-
 def start_recorder(stack, path, *flags):
     stack.start_router()
     stack.wait_alive(["router"])
     rec = stack.spawn("record", [*CLI, "record", "-o", str(path), *flags,
                                  "--connect", stack.endpoint])
-    wait_for_line(rec, "recording ")
+    rec.wait_for_line("recording ")
     return rec
 
 
 def publishers(stack, suffixes):
-    """One publisher per key, returned once each has a matching subscriber."""
-    sess = stack.session()
-    pubs = {stack.keys.resolve(s): sess.declare_publisher(stack.keys.resolve(s))
-            for s in suffixes}
-    deadline = time.monotonic() + 10
-    while not all(p.matching_status.matching for p in pubs.values()):
-        assert time.monotonic() < deadline, "the recorder's subscriber never matched"
-        time.sleep(0.01)
-    return pubs
+    """One publisher per key, returned once each has a matching subscriber (the recorder)."""
+    return {stack.keys.resolve(s): stack.publisher(s, timeout=10) for s in suffixes}
 
 
 def publish_irregularly(pubs, count, seed=3):
