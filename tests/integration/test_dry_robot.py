@@ -1,9 +1,8 @@
 """dry-robot through real processes: the planner drives it, `cbgo up --robot dry` starts it."""
 
 import sys
-import time
 
-from test_planner import PAPER_SCENE, PAPER_SEQUENCE, Collector, intent, put, reset, steps
+from test_planner import PAPER_SCENE, PAPER_SEQUENCE, intent, reset, steps
 
 from cbgo import keys, wire
 
@@ -15,15 +14,15 @@ def test_the_paper_example_on_dry_robot_ends_with_the_cup_in_the_drawer(stack):
     stack.start_service("dry-robot", "--action-s", "0.05", "--period-s", "0.2")
     stack.start_service("planner")
     stack.wait_alive(["router", "dry-robot", "planner"])
-    plans = Collector(stack, "plan/status")
-    scenes = Collector(stack, "scene/state")
+    plans = stack.collect("plan/status")
+    scenes = stack.collect("scene/state")
     reset(stack, PAPER_SCENE)
-    put(stack, "intent", intent("put_into", "drawer1"))
-    end = plans.wait(lambda m: m["state"] != "running", timeout=30)
+    stack.put("intent", intent("put_into", "drawer1"))
+    end = plans.first(lambda m: m["state"] != "running", timeout=30)
     assert (end["state"], end["error"]) == ("success", None), (
         end["sequence"], stack.logs(["planner", "dry-robot"]))
     assert steps(end) == PAPER_SEQUENCE
-    after = scenes.wait(lambda m: any(o.get("inside") == "drawer1" for o in m["objects"]))
+    after = scenes.first(lambda m: any(o.get("inside") == "drawer1" for o in m["objects"]))
     cup = next(o for o in after["objects"] if o["name"] == "cup1")
     assert cup["inside"] == "drawer1" and after["robot"]["holding"] is None
     status = stack.status("dry-robot")
@@ -47,11 +46,8 @@ def test_cbgo_up_with_robot_dry_starts_dry_robot_in_place_of_mujoco_sim(stack):
     up = stack.spawn("up", [*CLI, "up", "--robot", "dry", "--router-listen", stack.endpoint,
                             "mujoco-sim"])
     stack.wait_alive(["router", "dry-robot"], timeout=60)
-    deadline = time.monotonic() + 30
-    while "ready: " not in up.log() and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert "ready: " in up.log(), up.log()
+    ready = up.wait_for_line("ready: ", timeout=30)
     assert "mujoco-sim" not in stack.alive()
-    assert "mujoco-sim" not in up.log().split("ready: ", 1)[1].splitlines()[0]
+    assert "mujoco-sim" not in ready.split("ready: ", 1)[1]
     code, _ = stack.stop("up")
     assert code == 0, up.log()

@@ -14,29 +14,6 @@ from cbgo import wire
 SCENES = Path(__file__).parents[1] / "artifacts" / "scenes"
 
 
-class Collector:
-    """Collects decoded messages on a key from the test's own session."""
-
-    def __init__(self, stack, suffix):
-        self.items = []
-        self.lock = threading.Lock()
-        stack.session().declare_subscriber(stack.keys.resolve(suffix), self._on)
-
-    def _on(self, sample):
-        with self.lock:
-            self.items.append(wire.decode(sample.payload.to_bytes()))
-
-    def wait(self, predicate, timeout=20.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            with self.lock:
-                found = [m for m in self.items if predicate(m)]
-            if found:
-                return found
-            time.sleep(0.05)
-        raise AssertionError(f"no matching message within {timeout} s")
-
-
 def _one(replies):
     assert len(replies) == 1, replies
     return replies[0]
@@ -50,14 +27,14 @@ def _start(stack, *flags):
 
 def test_reset_publishes_the_scene_and_pick_up_holds_the_cup(stack):
     _start(stack, "--seed", "2")
-    scenes = Collector(stack, "scene/state")
-    robots = Collector(stack, "robot/state")
+    scenes = stack.collect("scene/state")
+    robots = stack.collect("robot/state")
     ok, reply = _one(stack.query("cbgo/sim/reset", {"v": 1, "seed": 5}, timeout=30))
     assert ok and reply["ok"], reply
     wire.validate(reply, wire.SIM_RESET_REPLY, "cbgo/sim/reset")
     names = [o["name"] for o in reply["scene"]["objects"]]
     scenes.wait(lambda m: [o["name"] for o in m["objects"]] == names)
-    for message in robots.wait(lambda m: True):
+    for message in robots.wait():
         wire.validate(message, wire.ROBOT_STATE, "cbgo/robot/state")
 
     fixed = json.loads((SCENES / "fixed.json").read_text())
@@ -96,7 +73,7 @@ def test_render_gives_a_png_and_stop_halts_a_paced_action(stack, tmp_path):
         timeout=30)))
     act.start()
     time.sleep(1.0)
-    stop = stack.session().declare_publisher("cbgo/robot/stop")
+    stop = stack.publisher("robot/stop")
     t0 = time.monotonic()
     stop.put(wire.encode({"v": 1, "ts": time.time(), "reason": "test"}))
     act.join(30)

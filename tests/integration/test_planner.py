@@ -6,7 +6,6 @@ not built; the mujoco-sim tests skip with the reason when it is not.
 """
 
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -26,43 +25,6 @@ PAPER_SCENE = {
 }
 PAPER_SEQUENCE = [("place", "cup1"), ("open", "drawer1"), ("pick_up", "cup1"),
                   ("put_into", "drawer1")]
-
-
-class Collector:
-    """Collects decoded messages on a key from the test's own session."""
-
-    def __init__(self, stack, suffix):
-        self.items = []
-        self.lock = threading.Lock()
-        self.sub = stack.session().declare_subscriber(stack.keys.resolve(suffix), self._on)
-
-    def _on(self, sample):
-        with self.lock:
-            self.items.append(wire.decode(sample.payload.to_bytes()))
-
-    def wait(self, predicate, timeout=20.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            with self.lock:
-                found = [m for m in self.items if predicate(m)]
-            if found:
-                return found[0]
-            time.sleep(0.02)
-        with self.lock:
-            last = self.items[-1:] or "nothing"
-        raise AssertionError(f"no matching message within {timeout} s; last: {last}")
-
-    def last(self):
-        with self.lock:
-            return self.items[-1]
-
-
-def put(stack, suffix, message):
-    pub = stack.session().declare_publisher(stack.keys.resolve(suffix))
-    deadline = time.monotonic() + 5
-    while not pub.matching_status.matching and time.monotonic() < deadline:
-        time.sleep(0.01)
-    pub.put(wire.encode(message))
 
 
 def intent(action, obj, **params):
@@ -101,16 +63,14 @@ def symbolic(*flags):
 
 def test_the_paper_example_runs_on_a_symbolic_robot_process(stack):
     start(stack, symbolic("--period-s", "0.2"), "symbolic-robot")
-    plans = Collector(stack, "plan/status")
-    scenes = Collector(stack, "scene/state")
+    plans = stack.collect("plan/status")
+    scenes = stack.collect("scene/state")
     reset(stack, PAPER_SCENE)
     show = stack.spawn("plan-show", [sys.executable, "-m", "cbgo.cli.main", "plan", "show",
                                      "--once", "--timeout", "30"])
-    deadline = time.monotonic() + 15
-    while "listening on" not in show.log() and time.monotonic() < deadline:
-        time.sleep(0.05)  # `cbgo plan show` says so once it has subscribed
-    put(stack, "intent", intent("put_into", "drawer1"))
-    end = plans.wait(lambda m: m["state"] != "running", timeout=30)
+    show.wait_for_line("listening on", timeout=15)  # printed once it has subscribed
+    stack.put("intent", intent("put_into", "drawer1"))
+    end = plans.first(lambda m: m["state"] != "running", timeout=30)
     assert (end["state"], end["error"]) == ("success", None), (
         end["sequence"], stack.logs(["planner", "mujoco-sim"]))
     assert steps(end) == PAPER_SEQUENCE
@@ -118,17 +78,17 @@ def test_the_paper_example_runs_on_a_symbolic_robot_process(stack):
     assert "plan put_into(drawer1): " in show.log()
     assert all(s["state"] == "done" for s in end["sequence"])
     wire.validate(end, wire.PLAN_STATUS, "cbgo/plan/status")
-    after = scenes.wait(lambda m: any(o.get("inside") == "drawer1" for o in m["objects"]))
+    after = scenes.first(lambda m: any(o.get("inside") == "drawer1" for o in m["objects"]))
     assert after["robot"]["holding"] is None
     assert stack.status("planner")["plans"]["succeeded"] == 1
 
 
 def test_a_target_the_robot_refuses_ends_in_a_clear_failure(stack):
     start(stack, symbolic("--refuse", "pick_up"), "symbolic-robot")
-    plans = Collector(stack, "plan/status")
+    plans = stack.collect("plan/status")
     reset(stack, PAPER_SCENE)
-    put(stack, "intent", intent("put_into", "drawer1"))
-    end = plans.wait(lambda m: m["state"] != "running", timeout=30)
+    stack.put("intent", intent("put_into", "drawer1"))
+    end = plans.first(lambda m: m["state"] != "running", timeout=30)
     assert end["state"] == "failure"
     assert end["error"] == "pick_up(cup1) failed 2 times: refused: the target is out of reach"
     assert steps(end) == PAPER_SEQUENCE[:3]
@@ -137,13 +97,13 @@ def test_a_target_the_robot_refuses_ends_in_a_clear_failure(stack):
 
 def test_robot_stop_aborts_the_plan_at_once(stack):
     start(stack, symbolic("--delay-s", "3"), "symbolic-robot")
-    plans = Collector(stack, "plan/status")
+    plans = stack.collect("plan/status")
     reset(stack, PAPER_SCENE)
-    put(stack, "intent", intent("put_into", "drawer1"))
+    stack.put("intent", intent("put_into", "drawer1"))
     plans.wait(lambda m: m["sequence"] and m["sequence"][0]["state"] == "running")
     t0 = time.monotonic()
-    put(stack, "robot/stop", {"v": 1, "ts": time.time(), "reason": "test"})
-    end = plans.wait(lambda m: m["state"] != "running", timeout=5)
+    stack.put("robot/stop", {"v": 1, "ts": time.time(), "reason": "test"})
+    end = plans.first(lambda m: m["state"] != "running", timeout=5)
     assert time.monotonic() - t0 < 2.0  # the action in flight would take 3 s
     assert (end["state"], end["error"]) == ("failure", "stopped: test")
     time.sleep(0.5)
@@ -162,11 +122,11 @@ needs_sim = pytest.mark.skipif(not registry.by_name("mujoco-sim").exists(),
 @pytest.mark.timeout(400)
 def test_the_paper_example_in_mujoco_ends_with_the_cup_in_the_drawer(stack):
     start(stack, None, "mujoco-sim", timeout=120)
-    plans = Collector(stack, "plan/status")
-    scenes = Collector(stack, "scene/state")
+    plans = stack.collect("plan/status")
+    scenes = stack.collect("scene/state")
     reset(stack, PAPER_SCENE)
-    put(stack, "intent", intent("put_into", "drawer1"))
-    end = plans.wait(lambda m: m["state"] != "running", timeout=300)
+    stack.put("intent", intent("put_into", "drawer1"))
+    end = plans.first(lambda m: m["state"] != "running", timeout=300)
     assert (end["state"], end["error"]) == ("success", None), (
         end["sequence"], stack.logs(["planner", "mujoco-sim"]))
     got = steps(end)
@@ -181,13 +141,13 @@ def test_the_paper_example_in_mujoco_ends_with_the_cup_in_the_drawer(stack):
 @pytest.mark.timeout(300)
 def test_an_unreachable_cup_in_mujoco_ends_in_a_clear_failure(stack):
     start(stack, None, "mujoco-sim", timeout=120)
-    plans = Collector(stack, "plan/status")
+    plans = stack.collect("plan/status")
     far = {"objects": [{"name": "cup9", "type": "cup", "position": [1.05, 0.0, 0.03],
                         "size": 0.06, "full": True, "on": None, "inside": None}],
            "robot": {"tcp": [0.44, 0.06, 0.26], "gripper_open": True, "holding": None}}
     reset(stack, far)
-    put(stack, "intent", intent("pick_up", "cup9"))
-    end = plans.wait(lambda m: m["state"] != "running", timeout=200)
+    stack.put("intent", intent("pick_up", "cup9"))
+    end = plans.first(lambda m: m["state"] != "running", timeout=200)
     assert end["state"] == "failure"
     assert end["error"].startswith("pick_up(cup9) failed 2 times: "), end["error"]
     assert steps(end) == [("pick_up", "cup9")]
