@@ -42,7 +42,7 @@ class DryRobotSettings:
     action_s: float = field(default=0.3, metadata=_help(
         "seconds each feasible action takes (so that plans can be watched); 0: at once, for "
         "fast plan checks"))
-    period_s: float = field(default=0.5, metadata=_help(
+    period_s: float = field(default=0.05, metadata=_help(
         "cbgo/scene/state and cbgo/robot/state period, s; both are also published after "
         "every change"))
     seed: int = field(default=0, metadata=_help(

@@ -203,15 +203,20 @@ class Planner(Service):
             self._waiting.append(msg)
             full = len(self._waiting) > self.settings.queue_size
             dropped = self._waiting.popleft() if full else None
-        if dropped is None:
-            return None
-        self.counts["dropped"] += 1
-        return [(keys.PLAN_STATUS, _unstarted(dropped, "dropped: newer intents arrived while "
-                                                       f"{self.settings.queue_size} waited"))]
+        out = []
+        if dropped is not None:
+            self.counts["dropped"] += 1
+            out.append((keys.PLAN_STATUS, _unstarted(dropped, (
+                f"dropped: newer intents arrived while {self.settings.queue_size} waited"))))
+        # Start at once when idle rather than on the next tick: up to a tick less latency.
+        return out + (self._advance(count_wait=False) if self.plan is None else [])
 
-    def on_scene(self, msg: dict) -> None:
-        """Keeps the newest scene (set aside while a primitive runs)."""
+    def on_scene(self, msg: dict):
+        """Keeps the newest scene (set aside while a primitive runs); may start a waiting plan."""
         self.scenes.observe(msg)
+        if self.plan is None and self._waiting:
+            return self._advance(count_wait=False)
+        return None
 
     def on_stop(self, msg: dict) -> None:
         """Called at once on Zenoh's thread: no primitive goes out from now; aborts next tick."""
@@ -227,9 +232,18 @@ class Planner(Service):
 
     def on_tick(self):
         """Timer: handles a stop, starts the next intent, ticks the tree, reports changes."""
-        out = self._handle_stop()
+        return self._handle_stop() + self._advance(count_wait=True)
+
+    def _advance(self, count_wait: bool) -> list:
+        """Starts the next intent if idle, ticks the tree, reports changes.
+
+        Args:
+            count_wait: whether this call counts as a tick of an intent's wait for a fresh
+                scene (only timer ticks do, so the wait is measured in timer time).
+        """
+        out = []
         if self.plan is None:
-            out += self._start_next()
+            out += self._start_next(count_wait)
         if self.plan is not None:
             self.plan.tick()
             out += self._report()
@@ -254,7 +268,7 @@ class Planner(Service):
                 self.robot.resume()
         return out
 
-    def _start_next(self) -> list:
+    def _start_next(self, count_wait: bool) -> list:
         with self._lock:
             intent = self._waiting[0] if self._waiting else None
         if intent is None:
@@ -264,8 +278,8 @@ class Planner(Service):
         # last scene: a reset, another client's action), unless none comes within FRESH_SCENE_S.
         stale = self.scenes.ts < intent["ts"] and waited < FRESH_SCENE_S
         if not self.scenes.ready or stale:
-            self._scene_wait_ticks += 1
-            if waited < self.settings.scene_timeout_s:
+            self._scene_wait_ticks += count_wait
+            if waited < self.settings.scene_timeout_s or not count_wait:
                 return []
         with self._lock:
             if not self._waiting or self._waiting[0] is not intent:
