@@ -3,43 +3,12 @@ and `cbgo feedback` correcting the last intent."""
 
 import subprocess
 import sys
-import threading
 import time
 
 from cbgo import wire
 from cbgo.examples import example
 
 CLI = [sys.executable, "-m", "cbgo.cli.main"]
-
-
-class Collector:
-    """Collects decoded messages on a key from the test's own session."""
-
-    def __init__(self, stack, suffix):
-        self.items, self.lock = [], threading.Lock()
-        self._sub = stack.session().declare_subscriber(stack.keys.resolve(suffix), self._on)
-
-    def _on(self, sample):
-        with self.lock:
-            self.items.append(wire.decode(sample.payload.to_bytes()))
-
-    def wait(self, predicate, timeout=20.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            with self.lock:
-                found = [m for m in self.items if predicate(m)]
-            if found:
-                return found
-            time.sleep(0.05)
-        raise AssertionError(f"no matching message within {timeout} s")
-
-
-def put(stack, suffix, message):
-    pub = stack.session().declare_publisher(stack.keys.resolve(suffix))
-    deadline = time.monotonic() + 5
-    while not pub.matching_status.matching and time.monotonic() < deadline:
-        time.sleep(0.01)
-    pub.put(wire.encode(message))
 
 
 def start_intent(stack, tmp_path):
@@ -84,15 +53,15 @@ def test_by_default_the_service_accepts_put_into_a_closed_drawer(stack, tmp_path
 
 def test_a_summary_becomes_an_intent_and_cbgo_feedback_corrects_it(stack, tmp_path):
     start_intent(stack, tmp_path)
-    intents = Collector(stack, "intent")
-    put(stack, "scene/state", example("scene/state"))
+    intents = stack.collect("intent")
+    stack.put("scene/state", example("scene/state"))
     summary = example("episode/summary", episode="ep-7", user="carol",
                       gestures={"names": ["swipe_left"], "probs": [0.95]})
     deadline = time.monotonic() + 10
     while stack.status("intent").get("has_scene") is not True:
         assert time.monotonic() < deadline, "the scene never arrived"
         time.sleep(0.05)
-    put(stack, "episode/summary", summary)
+    stack.put("episode/summary", summary)
     (intent,) = intents.wait(lambda m: m["episode"] == "ep-7")
     assert (intent["action"], intent["status"]) == ("move_left", "accepted")
     done = subprocess.run([*CLI, "feedback", "--action", "move_right", "--connect",
@@ -104,6 +73,6 @@ def test_a_summary_becomes_an_intent_and_cbgo_feedback_corrects_it(stack, tmp_pa
     while not (folder / "model.json").exists():
         assert time.monotonic() < deadline, stack.logs(["intent"])
         time.sleep(0.1)
-    put(stack, "episode/summary", {**summary, "episode": "ep-8"})
+    stack.put("episode/summary", {**summary, "episode": "ep-8"})
     (again,) = intents.wait(lambda m: m["episode"] == "ep-8", timeout=30)
     assert (again["action"], again["model"]) == ("move_right", "intent-ours-1+carol")
