@@ -21,7 +21,8 @@ Examples::
     cbgo certs make ~/cbgo-certs          # authority, router, every service, operator
     cbgo certs make ~/cbgo-certs --host robot-pc --host 10.0.0.5 --names router --force
                                           # re-issue the router's for the names clients use
-    cbgo certs make ~/cbgo-certs --names operator-anna      # one more client certificate
+    cbgo certs make ~/cbgo-certs --names operator-anna      # one more client certificate;
+                                          # it may do nothing until router.json5 lists it
 """
 
 from __future__ import annotations
@@ -252,7 +253,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              help="where to write the certificates (created if missing)")
     make_parser.add_argument(
         "--names", action="append", metavar="NAME",
-        help="common names to issue, repeatable or comma-separated [default: "
+        help="common names to issue, repeatable or comma-separated; a name the router's ACL "
+             "(deploy/tls/router.json5) does not list may do nothing [default: "
              f"{', '.join(default_names())}]")
     make_parser.add_argument(
         "--host", action="append", metavar="NAME_OR_IP",
