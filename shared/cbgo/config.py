@@ -356,6 +356,22 @@ def data_dir(env: typing.Mapping[str, str] | None = None) -> Path:
     return Path(base) / "cbgo"
 
 
+def _file_wins(options: ZenohOptions, conf, key: str, endpoints: list[str]) -> bool:
+    """Whether a config file's own endpoints at `key` stand over cbgo's built-in default.
+
+    Endpoints given by flag or environment always win; but the built-in defaults
+    (``tcp/127.0.0.1:7447`` to connect, ``tcp/0.0.0.0:7447`` for the router) must not replace
+    the ones a ``--config`` file names, e.g. ``tls/router:7447`` in a TLS deployment.
+    """
+    if not options.config or endpoints not in ([DEFAULT_CONNECT], [DEFAULT_ROUTER_LISTEN]):
+        return False
+    try:
+        own = json.loads(conf.get_json(key))
+    except Exception:  # zenoh raises ZError for a key it does not know
+        return False
+    return isinstance(own, list) and bool(own)  # unset: [] (connect) or a per-mode map
+
+
 def zenoh_config(options: ZenohOptions, name: str):
     """Returns the zenoh.Config of a process named `name`.
 
@@ -367,10 +383,11 @@ def zenoh_config(options: ZenohOptions, name: str):
 
     conf = zenoh.Config.from_file(options.config) if options.config else zenoh.Config()
     conf.insert_json5("mode", json.dumps(options.mode))
-    if options.connect:
+    if options.connect and not _file_wins(options, conf, "connect/endpoints", options.connect):
         conf.insert_json5("connect/endpoints", json.dumps(options.connect))
+    if options.connect:
         conf.insert_json5("connect/timeout_ms", "-1")
-    if options.listen:
+    if options.listen and not _file_wins(options, conf, "listen/endpoints", options.listen):
         conf.insert_json5("listen/endpoints", json.dumps(options.listen))
     conf.insert_json5("scouting/multicast/enabled", json.dumps(options.scouting))
     conf.insert_json5("metadata", json.dumps({"name": name}))

@@ -560,15 +560,16 @@ def run(service_cls: type[Service], argv: list[str] | None = None) -> int:
 
 
 def _serve_forever(service_cls: type[Service], resolved: Resolved, log) -> int:
-    import zenoh
 
     service = service_cls(resolved.settings)
     ctx_box: list[Context] = []
     loop = _EventLoop(lambda: ctx_box[0] if ctx_box else None)
     stop = threading.Event()
     _install_signal_handlers(stop, loop, log)
-    conf = zenoh_config(resolved.zenoh, service_cls.name)
-    with zenoh.open(conf) as session:
+    session = _open_session(zenoh_config(resolved.zenoh, service_cls.name), stop, log)
+    if session is None:
+        return EXIT_OK
+    with session:
         transport = ZenohTransport(session)
         ctx = Context(service, Keys(resolved.zenoh.prefix), transport, resolved.as_dict(),
                       resolved.runtime.max_payload_bytes, enqueue=loop.enqueue)
@@ -594,6 +595,38 @@ def _serve_forever(service_cls: type[Service], resolved: Resolved, log) -> int:
             ctx._call("shutdown", service.shutdown)
     log.info("stopped")
     return ctx.exit_code
+
+
+def _open_session(conf, stop: threading.Event, log):
+    """Opens the Zenoh session; returns None if SIGTERM/SIGINT came first.
+
+    A client waits for its router forever, inside Zenoh's native code, where Python cannot run
+    signal handlers; so the session is opened on a helper thread while the main thread stays
+    responsive and can exit cleanly (compose and `cbgo up` stop a service still waiting).
+    """
+    import zenoh
+
+    box: list = []
+
+    def open_it() -> None:
+        try:
+            box.append(zenoh.open(conf))
+        except Exception as e:  # zenoh.ZError and friends: re-raised on the main thread
+            box.append(e)
+
+    opener = threading.Thread(target=open_it, name="zenoh-open", daemon=True)
+    opener.start()
+    announced, since = False, time.monotonic()
+    while opener.is_alive() and not stop.is_set():
+        opener.join(0.1)
+        if opener.is_alive() and not announced and time.monotonic() - since > 2.0:
+            log.info("waiting for the Zenoh network (%s)", conf.get_json("connect/endpoints"))
+            announced = True
+    if stop.is_set() and not box:
+        return None
+    if isinstance(box[0], Exception):
+        raise box[0]
+    return box[0]
 
 
 def main_for(service_cls: type[Service]) -> Callable[[list[str] | None], None]:

@@ -160,6 +160,15 @@ def test_a_service_busy_in_a_long_handler_still_exits_within_two_seconds(stack, 
     assert seconds < 2.0
 
 
+def test_a_service_still_waiting_for_its_router_exits_at_sigterm(stack, probe_argv):
+    # No router is started: the probe waits in zenoh.open, in native code.
+    probe = stack.spawn("probe", probe_argv)
+    probe.wait_for_line("waiting for the Zenoh network", timeout=15)
+    code, seconds = stack.stop("probe", signal.SIGTERM)
+    assert code == 0, probe.log()
+    assert seconds < 2.0
+
+
 def test_the_router_exits_within_two_seconds_of_sigterm(stack):
     stack.start_router()
     stack.wait_alive(["router"])

@@ -419,3 +419,25 @@ def test_help_text_with_a_percent_sign_is_shown(capsys):
     with pytest.raises(SystemExit):
         run(["--help"], cls=Percent)
     assert "in %" in capsys.readouterr().out
+
+
+def test_a_config_files_endpoints_stand_over_the_built_in_defaults(tmp_path):
+    import json as _json
+
+    from cbgo.config import ZenohOptions, zenoh_config
+
+    path = tmp_path / "tls.json5"
+    path.write_text('{connect: {endpoints: ["tls/router:7447"]}, '
+                    'listen: {endpoints: ["tls/0.0.0.0:7447"]}}')
+    client = zenoh_config(ZenohOptions(config=str(path)), "t")
+    assert _json.loads(client.get_json("connect/endpoints")) == ["tls/router:7447"]
+    assert _json.loads(client.get_json("connect/timeout_ms")) == -1
+    router = zenoh_config(ZenohOptions(config=str(path), mode="router", connect=[],
+                                       listen=["tcp/0.0.0.0:7447"]), "r")
+    assert _json.loads(router.get_json("listen/endpoints")) == ["tls/0.0.0.0:7447"]
+    # an endpoint given by flag or environment still wins over the file
+    chosen = zenoh_config(ZenohOptions(config=str(path), connect=["tls/10.0.0.5:7447"]), "t")
+    assert _json.loads(chosen.get_json("connect/endpoints")) == ["tls/10.0.0.5:7447"]
+    # without a file the default applies as before
+    plain = zenoh_config(ZenohOptions(), "t")
+    assert _json.loads(plain.get_json("connect/endpoints")) == ["tcp/127.0.0.1:7447"]
