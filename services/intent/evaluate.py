@@ -4,6 +4,7 @@ Examples::
 
     python -m cbgo.services.intent.evaluate                   # the shipped model
     python -m cbgo.services.intent.evaluate --model /tmp/old/ours --seed 6000
+    python -m cbgo.services.intent.evaluate --timing 200     # the cost of one inference only
 
 Prints, on observations drawn with seeds neither `cbgo train intent` (0, 1000, 2000) nor
 `cbgo bench intent` (below 3000) uses:
@@ -17,6 +18,10 @@ Prints, on observations drawn with seeds neither `cbgo train intent` (0, 1000, 2
 3. the demo's decisions (`CHECKS`) through `IntentEngine`, each against what it should be.
 
 The exit status is 1 if a demo decision differs from what it should be.
+
+``--timing N`` prints instead what one inference costs on the demo's first scene (`CHECKS`):
+median and p90 over N repeats of `OursModel.predict` alone and of the whole `IntentEngine.infer`
+(scene checks, features, prediction, decision), single-threaded like the service.
 """
 
 from __future__ import annotations
@@ -24,11 +29,13 @@ from __future__ import annotations
 import argparse
 import itertools
 import sys
+import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from cbgo.services.intent import datasets
@@ -191,6 +198,8 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
                         help="D4's seed; the repairable ones use seed + 1 [5000]")
     parser.add_argument("--samples", type=int, default=32,
                         help="posterior samples per prediction (the service's default) [32]")
+    parser.add_argument("--timing", type=int, default=0, metavar="N",
+                        help="only time one inference on the demo's first scene, N repeats")
     return parser.parse_args(argv)
 
 
@@ -199,6 +208,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
     torch.set_num_threads(1)  # tiny networks: threads only cost
     model = OursModel.load(args.model or default_model_path())
+    if args.timing > 0:
+        report_timing(IntentEngine(model, SERVICE_DECISION, None, args.samples), CHECKS[0],
+                      args.timing)
+        return 0
     trained = model.meta.get("trained_on", {})
     print(f"model {model.name}: {trained.get('dataset')}, {trained.get('samples')} "
           f"observations, repairable intents: {trained.get('repairable', False)}")
@@ -234,6 +247,40 @@ def report_checks(engine: IntentEngine) -> int:
         print(f"{'ok  ' if ok else 'FAIL'} {check.title}: {got} p={intent['confidence']:.2f}"
               + ("" if ok else f"; should be {check.status} {check.action}({check.object})"))
     return 1 if failed else 0
+
+
+# ==================================================================== timing
+
+
+def time_inference(engine: IntentEngine, check: Check, repeats: int) -> dict[str, np.ndarray]:
+    """Returns the ms of `repeats` predictions alone and of as many whole inferences."""
+    scene = check.scene()
+    body, focus = scene.to_dict(), check.focus(scene)  # the service receives the scene's body
+    gestures = {"names": [check.gesture], "probs": [0.9]}
+    user = np.eye(len(engine.users))[engine.users.index(check.user)]
+    batch = Batch.from_scene(scene, engine.gesture_vector(gestures), user, focus, engine.cell)
+    run_check(engine, check)  # the first call pays for lazy initialisation: not timed
+    return {"predict": _repeat_ms(lambda: engine.model.predict(batch, samples=engine.samples),
+                                  repeats),
+            "infer": _repeat_ms(lambda: engine.infer(gestures, body, focus, check.user),
+                                repeats)}
+
+
+def _repeat_ms(call: Callable[[], object], repeats: int) -> np.ndarray:
+    out = np.empty(repeats)
+    for i in range(repeats):
+        start = time.perf_counter()
+        call()
+        out[i] = (time.perf_counter() - start) * 1000
+    return out
+
+
+def report_timing(engine: IntentEngine, check: Check, repeats: int) -> None:
+    """Prints median and p90 ms of one prediction and of one whole inference."""
+    print(f"one inference, {engine.samples} posterior samples, {check.title}, "
+          f"{repeats} repeats:")
+    for name, ms in time_inference(engine, check, repeats).items():
+        print(f"  {name}: median {np.median(ms):.2f} ms, p90 {np.percentile(ms, 90):.2f} ms")
 
 
 if __name__ == "__main__":

@@ -35,7 +35,8 @@ The joint is p(action, object) = p(object) · p(action | object); moves and plac
 the object, are scored by their marginal Σ_o p(action, o) (`cbgo.services.intent.decide`).
 Training maximises the ELBO of log p(target) + log p(action | target) (the target of a move or
 place being the object looked at); a target of −1 (a correction without an object) uses the
-marginal log Σ_o p(action, o). Predictions average the joint over posterior samples.
+marginal log Σ_o p(action, o). Predictions average the joint over posterior samples, drawn
+all at once and evaluated in one batched pass (`IntentNet.forward_drawn`).
 """
 
 from __future__ import annotations
@@ -267,6 +268,7 @@ class SlotModel:
 
 N_OBJECT_FEATURES = 2 * len(OBJECT_TYPES) + 9
 N_ACTOR_FEATURES = 2 * len(OBJECT_TYPES) + 1
+PREDICT_ROWS = 1 << 16  # samples × observations × objects evaluated in one batched pass
 
 
 @dataclass
@@ -279,6 +281,24 @@ class IntentArch:
     hidden_act: list[int] = field(default_factory=lambda: [32])
     activation: str = "tanh"
     prior_sigma: float = 1.0
+
+
+@dataclass
+class IntentDraws:
+    """S networks drawn from an `IntentNet`'s posterior, per layer (`cbgo.bayes.BayesMLP.draw`)."""
+
+    scorer: list[bayes.Draw]
+    actor: list[bayes.Draw]
+
+
+def _with_context(per_object: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
+    """(N, K, F + C): every object's features followed by its observation's context."""
+    return torch.cat([per_object, ctx[:, None, :].expand(-1, per_object.shape[1], -1)], -1)
+
+
+def _log_softmax_objects(score: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Returns log p(object) from (..., N, K) scores: a softmax over each scene's objects."""
+    return torch.log_softmax(score.masked_fill(~mask, -math.inf), dim=-1)
 
 
 class IntentNet(nn.Module):
@@ -300,18 +320,31 @@ class IntentNet(nn.Module):
 
         One weight sample is shared by all objects of the call when sampling.
         """
-        ctx_k = ctx[:, None, :].expand(-1, obj.shape[1], -1)
         log_obj = self.log_p_object(obj, ctx, mask, sample)
-        log_act = torch.log_softmax(self.actor(torch.cat([act, ctx_k], -1), sample, shared=True),
-                                    dim=-1)
-        return log_obj[..., None] + log_act
+        logits = self.actor(_with_context(act, ctx), sample, shared=True)
+        return log_obj[..., None] + torch.log_softmax(logits, dim=-1)
 
     def log_p_object(self, obj: torch.Tensor, ctx: torch.Tensor, mask: torch.Tensor,
                      sample: bool = True) -> torch.Tensor:
         """Returns log p(object), shape (N, K); −inf for empty slots."""
-        ctx_k = ctx[:, None, :].expand(-1, obj.shape[1], -1)
-        score = self.scorer(torch.cat([obj, ctx_k], -1), sample, shared=True).squeeze(-1)
-        return torch.log_softmax(score.masked_fill(~mask, -math.inf), dim=-1)
+        score = self.scorer(_with_context(obj, ctx), sample, shared=True).squeeze(-1)
+        return _log_softmax_objects(score, mask)
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> IntentDraws:
+        """Returns `n` networks drawn from the posterior (scorer and action head)."""
+        return IntentDraws(self.scorer.draw(n, generator), self.actor.draw(n, generator))
+
+    def forward_drawn(self, obj: torch.Tensor, act: torch.Tensor, ctx: torch.Tensor,
+                      mask: torch.Tensor, draws: IntentDraws) -> torch.Tensor:
+        """Returns log p(object, action) under each of S drawn networks, shape (S, N, K, A).
+
+        What `forward` gives for one sample, for all S in one batched pass (−inf for empty
+        slots; every observation and object of the call sees the same S networks).
+        """
+        score = self.scorer.forward_drawn(_with_context(obj, ctx), draws.scorer).squeeze(-1)
+        logits = self.actor.forward_drawn(_with_context(act, ctx), draws.actor)
+        return (_log_softmax_objects(score, mask)[..., None]
+                + torch.log_softmax(logits, dim=-1))
 
     def log_likelihood(self, obj: torch.Tensor, act: torch.Tensor, ctx: torch.Tensor,
                        mask: torch.Tensor, action: torch.Tensor,
@@ -441,15 +474,26 @@ class OursModel:
 
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int = 32, seed: int | None = 0) -> Prediction:
-        """Returns the joint, p(action) and p(object), averaged over posterior samples."""
-        if seed is not None:
-            torch.manual_seed(seed)
+        """Returns the joint, p(action) and p(object), averaged over `samples` posterior draws.
+
+        The networks are drawn once per call (from `seed`, or torch's global random state if
+        None), so every observation of the call sees the same ones, and all of them run in one
+        batched pass per chunk of observations.
+        """
+        generator = None if seed is None else torch.Generator().manual_seed(seed)
+        draws = self.net.draw(samples, generator)
         t = _tensors(batch, self.context_standardizer)
-        joint = torch.zeros(batch.n, batch.obj_type.shape[1], N_ACTIONS)
-        for _ in range(samples):
-            joint += torch.exp(self.net(t["obj"], t["act"], t["ctx"], t["mask"]))
-        joint = (joint / samples).numpy().astype(np.float64)
+        # Chunks bound the (samples, chunk, K, hidden) activations of large evaluation batches.
+        chunk = max(1, PREDICT_ROWS // (samples * max(1, batch.obj_type.shape[1])))
+        parts = [self._mean_joint({k: v[i:i + chunk] for k, v in t.items()}, draws)
+                 for i in range(0, batch.n, chunk)]
+        joint = torch.cat(parts).numpy().astype(np.float64)
         return Prediction(joint.sum(1), joint.sum(2), joint)
+
+    def _mean_joint(self, t: dict[str, torch.Tensor], draws: IntentDraws) -> torch.Tensor:
+        """(N, K, A) the joint averaged over the drawn networks."""
+        return torch.exp(self.net.forward_drawn(t["obj"], t["act"], t["ctx"], t["mask"],
+                                                draws)).mean(0)
 
     def user_likelihood(self, batch: Batch, action: np.ndarray, target: np.ndarray
                         ) -> Callable[[torch.Tensor], torch.Tensor]:

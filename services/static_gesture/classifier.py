@@ -129,20 +129,16 @@ class Posterior:
 
     @classmethod
     def draw(cls, model: bayes.BayesMLP, samples: int, seed: int) -> Posterior:
-        """Draws ``samples`` weight sets w = mu + sigma·eps from every layer's q(w)."""
-        gen = torch.Generator().manual_seed(seed)
-        weights, biases = [], []
+        """Draws ``samples`` weight sets w = mu + sigma·eps from every layer's q(w).
+
+        The draws are `cbgo.bayes.BayesMLP.draw`'s (the same ones torch's batched forward
+        would use), kept transposed to (S, n_in, n_out) for numpy's x @ w.
+        """
         with torch.no_grad():
-            for layer in model.layers:
-                mu, sigma = layer.w_mu, bayes.BayesLinear._sigma(layer.w_rho)
-                eps = torch.randn((samples, *mu.shape), generator=gen, dtype=mu.dtype)
-                weights.append((mu + sigma * eps).transpose(1, 2).double().numpy())
-                if layer.b_mu is not None:
-                    bmu, bsig = layer.b_mu, bayes.BayesLinear._sigma(layer.b_rho)
-                    eps = torch.randn((samples, *bmu.shape), generator=gen, dtype=bmu.dtype)
-                    biases.append((bmu + bsig * eps)[:, None, :].double().numpy())
-                else:
-                    biases.append(np.zeros((samples, 1, mu.shape[0])))
+            draws = model.draw(samples, torch.Generator().manual_seed(seed))
+        weights = [w.transpose(1, 2).double().numpy() for w, _ in draws]
+        biases = [np.zeros((samples, 1, w.shape[1])) if b is None
+                  else b[:, None, :].double().numpy() for w, b in draws]
         return cls(weights, biases, model.arch.activation)
 
     def __post_init__(self):

@@ -11,6 +11,11 @@ estimated with the local reparameterisation trick (sample pre-activations, not w
 variance, one sample per example). Predictions average the softmax over posterior samples, so
 every input gets a probability vector that carries the model's uncertainty.
 
+Networks whose rows must see the same network (a scene's objects scored against each other)
+are averaged over whole weight sets instead: `BayesMLP.draw` draws S sets at once, stacked
+along a leading sample axis, and `BayesMLP.forward_drawn` runs all S networks in one batched
+product per layer (einsum over the sample axis) rather than S forward passes in a Python loop.
+
 Models are saved as a torch ``state_dict`` (``.pt``) plus JSON metadata (``.json``) that says how
 to rebuild them — never pickled code. Loading refuses files whose metadata does not match.
 """
@@ -35,6 +40,9 @@ from cbgo.errors import ConfigError
 
 FORMAT = "cbgo-bnn/1"
 ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU}
+
+Draw = tuple[torch.Tensor, torch.Tensor | None]
+"""S weight sets of one layer: weights (S, n_out, n_in) and biases (S, n_out) (None: no bias)."""
 
 
 class BayesLinear(nn.Module):
@@ -66,8 +74,11 @@ class BayesLinear(nn.Module):
         By default each row gets its own sample of the pre-activations (local
         reparameterisation: lowest variance, rows independent). ``shared=True`` draws one weight
         sample for the whole call instead, so that rows that must see the same network (the
-        objects of one scene scored against each other) do.
+        objects of one scene scored against each other) do; `draw` and `forward_drawn` do the
+        same for many samples at once.
         """
+        # Training's one shared sample stays on this path, not draw(1): adding the bias in
+        # another order would round differently and no longer reproduce the trained models.
         if sample and shared:
             w = self.w_mu + self._sigma(self.w_rho) * torch.randn_like(self.w_mu)
             out = x @ w.T
@@ -83,6 +94,35 @@ class BayesLinear(nn.Module):
         if self.b_rho is not None:
             var = var + self._sigma(self.b_rho) ** 2
         return mean + torch.sqrt(var + 1e-12) * torch.randn_like(mean)
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> Draw:
+        """Returns `n` weight sets drawn from q: w = mu + sigma·eps, all weights before biases.
+
+        Args:
+            n: how many sets.
+            generator: the random source (None: torch's global one).
+        """
+        eps = torch.randn((n, *self.w_mu.shape), generator=generator, dtype=self.w_mu.dtype)
+        w = self.w_mu + self._sigma(self.w_rho) * eps
+        if self.b_mu is None:
+            return w, None
+        eps = torch.randn((n, *self.b_mu.shape), generator=generator, dtype=self.b_mu.dtype)
+        return w, self.b_mu + self._sigma(self.b_rho) * eps
+
+    @staticmethod
+    def forward_drawn(x: torch.Tensor, draw: Draw, per_sample: bool) -> torch.Tensor:
+        """Returns pre-activations (S, ..., n_out) of x under each of the S weight sets.
+
+        Args:
+            x: (..., n_in), one input for every set, or (S, ..., n_in) with `per_sample`.
+            draw: the layer's S weight sets (`draw`).
+            per_sample: whether x has the leading sample axis (every layer but the first).
+        """
+        w, b = draw
+        out = torch.einsum("s...i,soi->s...o" if per_sample else "...i,soi->s...o", x, w)
+        if b is None:
+            return out
+        return out + b.reshape(len(b), *[1] * (out.ndim - 2), b.shape[-1])
 
     def kl(self) -> torch.Tensor:
         """Returns KL(q || prior) in closed form, summed over the layer's parameters."""
@@ -138,6 +178,20 @@ class BayesMLP(nn.Module):
         for layer in self.layers[:-1]:
             x = self.act(layer(x, sample, shared))
         return self.layers[-1](x, sample, shared)
+
+    def draw(self, n: int, generator: torch.Generator | None = None) -> list[Draw]:
+        """Returns `n` networks drawn from q: per layer, its `n` weight sets (layer by layer)."""
+        return [layer.draw(n, generator) for layer in self.layers]
+
+    def forward_drawn(self, x: torch.Tensor, draws: Sequence[Draw]) -> torch.Tensor:
+        """Returns logits (S, ..., n_out): x, of any leading shape, through each drawn network.
+
+        One batched product per layer for all S networks; the same as running them one by one
+        (up to float rounding).
+        """
+        for i, (layer, draw) in enumerate(zip(self.layers, draws, strict=True)):
+            x = layer.forward_drawn(self.act(x) if i else x, draw, per_sample=i > 0)
+        return x
 
     def kl(self) -> torch.Tensor:
         """Returns KL(q || prior) of the whole network."""

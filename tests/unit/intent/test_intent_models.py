@@ -2,12 +2,14 @@
 
 import numpy as np
 import pytest
+import torch
 
-from cbgo.services.intent import datasets
+from cbgo.services.intent import datasets, models
 from cbgo.services.intent.decide import decide_arrays, joint_correct
 from cbgo.services.intent.models import (
     SLOT_KINDS,
     Batch,
+    IntentDraws,
     OursModel,
     SlotModel,
     focus_field,
@@ -95,6 +97,54 @@ def test_trained_models_save_and_load_with_the_same_predictions(tmp_path, tiny):
                        m5.predict(batch).p_action)
     with pytest.raises(Exception, match="not 'ours'"):
         OursModel.load(tmp_path / "m5")
+
+
+def inputs(model: OursModel, batch: Batch) -> list[torch.Tensor]:
+    t = models._tensors(batch, model.context_standardizer)
+    return [t["obj"], t["act"], t["ctx"], t["mask"]]
+
+
+def stacked(draws: list[IntentDraws]) -> IntentDraws:
+    """One set of S drawn networks from S sets of one."""
+    def layers(per_draw):
+        return [(torch.cat([d[i][0] for d in per_draw]), torch.cat([d[i][1] for d in per_draw]))
+                for i in range(len(per_draw[0]))]
+    return IntentDraws(layers([d.scorer for d in draws]), layers([d.actor for d in draws]))
+
+
+def test_the_batched_posterior_average_equals_the_loop_over_one_sample_forwards(shipped):
+    # The loop is how predictions were made before: one forward (one shared weight sample,
+    # drawn from torch's global generator) per posterior sample. Seeding the global generator
+    # alike makes `draw(1)` draw the same weights, so both paths see the same networks.
+    batch = Batch.from_dataset(datasets.make("D4", 12, seed=27))
+    x, seeds = inputs(shipped, batch), range(6)
+    with torch.no_grad():
+        loop = []
+        for seed in seeds:
+            torch.manual_seed(seed)
+            loop.append(torch.exp(shipped.net(*x)))
+        draws = []
+        for seed in seeds:
+            torch.manual_seed(seed)
+            draws.append(shipped.net.draw(1))
+        batched = torch.exp(shipped.net.forward_drawn(*x, stacked(draws)))
+    assert batched.shape == (6, *loop[0].shape)
+    assert torch.allclose(batched, torch.stack(loop), atol=1e-6)
+    assert (loop[0] - loop[1]).abs().max() > 1e-3  # the sampled networks do differ
+
+
+def test_a_prediction_sees_the_same_networks_in_every_chunk_and_follows_its_seed(
+        shipped, monkeypatch):
+    batch = Batch.from_dataset(datasets.make("D4", 40, seed=28))
+    whole = shipped.predict(batch, samples=8)
+    monkeypatch.setattr(models, "PREDICT_ROWS", 8 * batch.obj_type.shape[1] * 3)
+    chunked = shipped.predict(batch, samples=8)  # 14 chunks of at most 3 observations
+    assert np.allclose(chunked.joint, whole.joint, atol=1e-6)
+    assert np.abs(shipped.predict(batch, samples=8, seed=1).joint - whole.joint).max() > 1e-4
+    draws = shipped.net.draw(8, torch.Generator().manual_seed(0))
+    with torch.no_grad():
+        mean = torch.exp(shipped.net.forward_drawn(*inputs(shipped, batch), draws)).mean(0)
+    assert np.allclose(whole.joint, mean.numpy(), atol=1e-6)
 
 
 def test_gesture_names_map_by_name_ignoring_unknown_ones():

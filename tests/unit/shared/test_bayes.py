@@ -68,6 +68,49 @@ def test_a_saved_model_loads_back_with_its_metadata_and_same_predictions(tmp_pat
     assert np.allclose(bayes.predict_proba(loaded.model, x[:5]), bayes.predict_proba(model, x[:5]))
 
 
+def one_network_at_a_time(model, x, draws):
+    """The reference: each drawn network run on its own, with plain matrix products."""
+    out = []
+    for s in range(len(draws[0][0])):
+        h = x
+        for i, (w, b) in enumerate(draws):
+            h = model.act(h) if i else h
+            h = h @ w[s].T + (b[s] if b is not None else 0.0)
+        out.append(h)
+    return torch.stack(out)
+
+
+@pytest.mark.parametrize("activation, bias", [("tanh", True), ("relu", False)])
+def test_the_batched_forward_of_drawn_networks_equals_running_them_one_by_one(activation, bias):
+    torch.manual_seed(0)
+    model = bayes.BayesMLP(bayes.Architecture(5, [7, 4], 3, activation, bias=bias))
+    with torch.no_grad():
+        for layer in model.layers:
+            layer.w_rho.fill_(-1.0)  # sigma ≈ 0.31: the drawn networks differ visibly
+        x = torch.randn(2, 6, 5)  # any leading shape: observations × objects
+        draws = model.draw(8, torch.Generator().manual_seed(1))
+        batched = model.forward_drawn(x, draws)
+        reference = one_network_at_a_time(model, x, draws)
+    assert batched.shape == (8, 2, 6, 3)
+    assert torch.allclose(batched, reference, atol=1e-5)
+    assert (reference[0] - reference[1]).abs().max() > 0.1  # the draws are not all alike
+
+
+def test_draws_follow_the_posterior_and_their_seed():
+    layer = bayes.BayesLinear(4, 3)
+    with torch.no_grad():
+        layer.w_rho.fill_(float(np.log(np.exp(0.5) - 1)))  # sigma 0.5
+        layer.b_mu.fill_(2.0)
+        w, b = layer.draw(20000, torch.Generator().manual_seed(0))
+        same, _ = layer.draw(20000, torch.Generator().manual_seed(0))
+        other, _ = layer.draw(20000, torch.Generator().manual_seed(1))
+    assert w.shape == (20000, 3, 4) and b.shape == (20000, 3)
+    assert torch.allclose(w.mean(0), layer.w_mu, atol=0.02)
+    assert torch.allclose(w.std(0), torch.full((3, 4), 0.5), atol=0.02)
+    assert torch.allclose(b.mean(0), torch.full((3,), 2.0), atol=0.02)
+    assert torch.equal(same, w) and not torch.equal(other, w)
+
+
 def test_loading_a_broken_model_names_the_problem(tmp_path):
     with pytest.raises(ConfigError, match="cannot load model"):
         bayes.load(tmp_path / "missing")

@@ -247,3 +247,23 @@ def test_the_posterior_average_is_the_mean_softmax_of_networks_drawn_from_q():
     assert np.allclose(post.predict(x), np.mean(reference, 0))
     many = Posterior.draw(model, 4000, seed=2).predict(x)
     assert np.allclose(many, bayes.predict_proba(model, x, samples=4000), atol=0.02)
+
+
+def test_the_fixed_draws_are_the_networks_bayes_draws_from_the_same_seed():
+    import torch
+
+    from cbgo import bayes
+    from cbgo.services.static_gesture.classifier import Posterior
+
+    torch.manual_seed(0)
+    model = bayes.BayesMLP(bayes.Architecture(5, [4, 3], 2))
+    with torch.no_grad():
+        for layer in model.layers:
+            layer.w_rho.fill_(-1.0)
+    x = np.random.default_rng(0).normal(size=(3, 5))
+    with torch.no_grad():
+        logits = model.forward_drawn(torch.as_tensor(x, dtype=torch.float32),
+                                     model.draw(6, torch.Generator().manual_seed(1)))
+    torch_mean = torch.softmax(logits, -1).mean(0).double().numpy()
+    assert np.allclose(Posterior.draw(model, 6, seed=1).predict(x), torch_mean, atol=1e-5)
+    assert not np.allclose(Posterior.draw(model, 6, seed=2).predict(x), torch_mean, atol=1e-3)

@@ -1,0 +1,17 @@
+"""`python -m cbgo.services.intent.evaluate --timing`: the cost of one inference."""
+
+from cbgo.services.intent import evaluate
+
+
+def test_timing_prints_the_median_of_a_prediction_and_of_a_whole_inference(capsys):
+    assert evaluate.main(["--timing", "3", "--samples", "4"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "4 posterior samples" in lines[0] and "3 repeats" in lines[0]
+    assert [line.split(":")[0].strip() for line in lines[1:]] == ["predict", "infer"]
+
+
+def test_timing_times_every_repeat_of_both(shipped):
+    engine = evaluate.IntentEngine(shipped, evaluate.SERVICE_DECISION, None, 4)
+    times = evaluate.time_inference(engine, evaluate.CHECKS[0], 5)
+    assert set(times) == {"predict", "infer"}
+    assert all(len(ms) == 5 and (ms > 0).all() for ms in times.values())
