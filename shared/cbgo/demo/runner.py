@@ -251,10 +251,13 @@ class Runner:
             first = self.inbox.wait(mark, "plan/status", running, 10.0)
             if first is not None:
                 self.kill_scheduled(index, "plan", first.at + PLAN_KILL_DELAY_S)
+        # A restarted planner remembers nothing: a plan cut short by its kill never ends.
+        lost = any(r.step == index and r.target == "planner" for r in self.recoveries)
         end = self.inbox.wait(mark, "plan/status", lambda m: m["intent"]["episode"] == episode
-                              and m["state"] != "running", self.plan_timeout_s)
+                              and m["state"] != "running", 2.0 if lost else self.plan_timeout_s)
         if end is None:
-            return [f"the plan of {episode} did not end within {self.plan_timeout_s:g} s"]
+            return [f"the plan of {episode} was lost with the planner" if lost else
+                    f"the plan of {episode} did not end within {self.plan_timeout_s:g} s"]
         result.plan = end.message
         self.show_plan(mark, end)
         settled = self.inbox.wait(mark, "scene/state", lambda m: m["ts"] >= end.message["ts"],
