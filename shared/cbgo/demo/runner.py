@@ -32,7 +32,7 @@ INTENT_TIMEOUT_S = 5.0     # episode summary -> intent
 NO_PLAN_WAIT_S = 1.0       # how long a refused intent is watched for a plan that must not start
 SCENE_SETTLE_S = 0.3       # after a plan ends, the scene/state that follows it
 RECOVERY_TIMEOUT_S = 120.0
-PLAN_KILL_DELAY_S = 0.1    # a plan-phase kill hits this long into the plan's first action
+PLAN_KILL_DELAY_S = 0.05   # a plan-phase kill hits this long into the plan's first action
 KILL_AT = 0.55             # when in an episode's playing time a gesture-phase kill hits
 
 
@@ -115,6 +115,7 @@ class Runner:
         self.faults = list(faults or [])
         self.max_attempts = max_attempts if self.faults else 1
         self.recoveries: list[Recovery] = []
+        self._pids_before_plan: dict[str, int | None] | None = None
         self.t0 = time.time()
 
     # ---------------------------------------------------------------- queries
@@ -201,6 +202,7 @@ class Runner:
                 checkpoint: dict | None) -> list[str]:
         """Plays the step's episode once; returns what did not go as scripted."""
         self.kill_scheduled(index, "before", time.time())
+        self._pids_before_plan = self.pids() if self.scheduled(index, "plan") else None
         mark = self.inbox.mark()
         played_at = time.time()
         scenario = step.scenario(self.script.users, self.script.seed + 101 * index
@@ -250,7 +252,8 @@ class Runner:
         if self.scheduled(index, "plan"):
             first = self.inbox.wait(mark, "plan/status", running, 10.0)
             if first is not None:
-                self.kill_scheduled(index, "plan", first.at + PLAN_KILL_DELAY_S)
+                self.kill_scheduled(index, "plan", first.at + PLAN_KILL_DELAY_S,
+                                    self._pids_before_plan)
         # A restarted planner remembers nothing: a plan cut short by its kill never ends.
         lost = any(r.step == index and r.target == "planner" for r in self.recoveries)
         end = self.inbox.wait(mark, "plan/status", lambda m: m["intent"]["episode"] == episode
@@ -310,22 +313,40 @@ class Runner:
         """Whether a kill is still due in this step and phase."""
         return any(f.step == index and f.phase == phase for f in self.faults)
 
-    def kill_scheduled(self, index: int, phase: str, at: float) -> None:
-        """Makes the kills scheduled for this step and phase, at time `at`."""
+    def pids(self) -> dict[str, int | None]:
+        """Returns every expected process's pid, from its status reply."""
+        return {name: (self.status(name) or {}).get("pid") for name in self.expected()}
+
+    def kill_scheduled(self, index: int, phase: str, at: float,
+                       pids: dict[str, int | None] | None = None) -> None:
+        """Makes the kills scheduled for this step and phase, at time `at`.
+
+        Args:
+            index: the step (0-based).
+            phase: before, gesture or plan.
+            at: wall-clock time of the kill.
+            pids: the processes' pids if already asked (asking takes tens of ms: a kill
+                meant to land in the middle of a short robot action cannot wait for it).
+        """
         due = [f for f in self.faults if f.step == index and f.phase == phase]
         for fault in due:
             self.faults.remove(fault)
+            known = pids or self.pids()
             self.wait_until(at)
-            self.recoveries.append(self.kill(fault))
+            self.recoveries.append(self.kill(fault, known))
 
-    def kill(self, fault: Fault) -> Recovery:
-        """Kills one process with SIGKILL and measures its recovery."""
+    def kill(self, fault: Fault, pids: dict[str, int | None]) -> Recovery:
+        """Kills one process with SIGKILL and measures its recovery.
+
+        A killed simulator comes back with a world of its own; the world it had is put back
+        (the last scene/state heard before the kill), as a real robot's world would still be.
+        """
         target = self.robot if fault.target == "robot" else fault.target
         recovery = Recovery(target, fault.step, fault.phase)
-        pids = {name: (self.status(name) or {}).get("pid") for name in self.expected()}
         recovery.pid_before = pids.get(target)
         if recovery.pid_before is None:
             raise DemoError(f"cannot kill {target}: it does not answer its status query")
+        world = self.current_scene()
         killed_at = time.time()
         os.kill(recovery.pid_before, signal.SIGKILL)
         self.say(f"{self.clock()}  FAULT: kill -9 {target} (pid {recovery.pid_before})")
@@ -343,6 +364,9 @@ class Runner:
         self.say(f"{self.clock()}  {target} is back {back_text} as pid {recovery.pid_after}"
                  + (f"; also restarted: {recovery.others_restarted}"
                     if recovery.others_restarted else ""))
+        if target == self.robot and all_back and world is not None:
+            self.say(f"{self.clock()}  putting back the world {target} had before the kill")
+            self.reset(world)
         return recovery
 
     # ---------------------------------------------------------------- timeline
