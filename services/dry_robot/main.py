@@ -15,20 +15,17 @@ Behaviour (the contract is services/dry_robot/README.md):
 
 from __future__ import annotations
 
-import json
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import yaml
 
 from cbgo import keys, wire
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.runtime import Service, main_for
 from cbgo.services.dry_robot.robot import SymbolicRobot
-from cbgo.world import Scene, random_scene
+from cbgo.world import Scene, random_scene, read_scene_file
 
 NO_RENDERER = ("dry-robot has no renderer; it is the symbolic world model without physics or "
                "images: run mujoco-sim for cbgo/sim/render, or read the world on "
@@ -64,22 +61,6 @@ class DryRobotSettings:
 
 class SceneError(ValueError):
     """A scene the world model cannot start from (its rules broken)."""
-
-
-def read_scene_file(path: str) -> dict:
-    """Returns the scene body in a JSON or YAML file.
-
-    Raises:
-        ConfigError: unreadable, or not a map with ``objects``.
-    """
-    try:
-        text = Path(path).read_text()
-        data = json.loads(text) if path.endswith(".json") else yaml.safe_load(text)
-    except (OSError, ValueError, yaml.YAMLError) as e:
-        raise ConfigError(f"cannot read scene file {path}: {e}") from e
-    if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
-        raise ConfigError(f"scene file {path}: expected a map with an 'objects' list")
-    return data
 
 
 def consistent_scene(body: dict) -> Scene:

@@ -15,13 +15,10 @@ Behaviour (the contract is services/mujoco_sim/README.md):
 
 from __future__ import annotations
 
-import json
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import yaml
 
 from cbgo import keys, wire
 from cbgo.config import described as _help
@@ -32,6 +29,7 @@ from cbgo.services.mujoco_sim.build import CAMERAS
 from cbgo.services.mujoco_sim.engine import Sim
 from cbgo.services.mujoco_sim.render import Camera, RenderError
 from cbgo.services.mujoco_sim.skills import Robot
+from cbgo.world import read_scene_file
 
 
 @dataclass
@@ -68,22 +66,6 @@ class MujocoSimSettings:
             raise ConfigError(f"camera {self.camera!r} is not one of {', '.join(CAMERAS)}")
         if self.scene is not None and not Path(self.scene).is_file():
             raise ConfigError(f"scene file {self.scene!r} does not exist")
-
-
-def read_scene_file(path: str) -> dict:
-    """Returns the scene body in a JSON or YAML file.
-
-    Raises:
-        ConfigError: unreadable, or not a map with ``objects``.
-    """
-    try:
-        text = Path(path).read_text()
-        data = json.loads(text) if path.endswith(".json") else yaml.safe_load(text)
-    except (OSError, ValueError, yaml.YAMLError) as e:
-        raise ConfigError(f"cannot read scene file {path}: {e}") from e
-    if not isinstance(data, dict) or not isinstance(data.get("objects"), list):
-        raise ConfigError(f"scene file {path}: expected a map with an 'objects' list")
-    return data
 
 
 class MujocoSim(Service):

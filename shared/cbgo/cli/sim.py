@@ -21,12 +21,10 @@ import json
 import sys
 from pathlib import Path
 
-import yaml
-
 from cbgo import keys, wire
 from cbgo.cli.common import add_network_arguments, fail, read_json_argument, session
 from cbgo.codec import pretty
-from cbgo.errors import RejectedMessage
+from cbgo.errors import ConfigError, RejectedMessage
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -72,14 +70,12 @@ def _query(args: argparse.Namespace, topic, message: dict) -> dict:
 
 
 def _scene_file(path: str) -> dict:
+    from cbgo.world import read_scene_file
+
     try:
-        text = Path(path).read_text()
-        data = json.loads(text) if path.endswith(".json") else yaml.safe_load(text)
-    except (OSError, ValueError, yaml.YAMLError) as e:
-        fail(f"cannot read {path}: {e}", 2)
-    if not isinstance(data, dict) or "objects" not in data:
-        fail(f"{path}: expected a map with an 'objects' list", 2)
-    return {k: data[k] for k in ("objects", "robot") if k in data}
+        return read_scene_file(path)
+    except ConfigError as e:
+        fail(str(e), 2)
 
 
 def _print(reply: dict, as_json: bool) -> None:

@@ -4,9 +4,10 @@
 - `cbgo.world.scene`: `Scene`, `SceneObject`, `Robot`, to and from the contract's scene dict;
 - `cbgo.world.actions`: preconditions (`failures`, `check`, `feasible`, `candidates`) and
   symbolic effects (`apply`) of the eleven actions;
-- `cbgo.world.generate`: random valid scenes as the paper samples them (`random_scene`).
+- `cbgo.world.generate`: random valid scenes as the paper samples them (`random_scene`);
+- `cbgo.world.files`: scene files in JSON or YAML (`read_scene_file`).
 
-Pure Python and NumPy: no Zenoh, no torch.
+Pure Python, NumPy and YAML: no Zenoh, no torch.
 """
 
 from cbgo.world.actions import (
@@ -20,6 +21,7 @@ from cbgo.world.actions import (
     failures,
     feasible,
 )
+from cbgo.world.files import read_scene_file
 from cbgo.world.generate import random_scene
 from cbgo.world.grid import DEFAULT_GRID, Grid
 from cbgo.world.scene import Robot, Scene, SceneObject
@@ -27,4 +29,5 @@ from cbgo.world.scene import Robot, Scene, SceneObject
 __all__ = [
     "DEFAULT_GRID", "MOVES", "OBJECT_AGNOSTIC", "Failure", "Grid", "InfeasibleAction", "Robot",
     "Scene", "SceneObject", "apply", "candidates", "check", "failures", "feasible", "random_scene",
+    "read_scene_file",
 ]
