@@ -114,8 +114,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pause-s", type=float, default=0.1,
                         help="no hand in view before each episode, s [0.1]")
     parser.add_argument("--scene-rate-hz", type=float, default=20.0,
-                        help="the robot's cbgo/scene/state rate, Hz (mujoco-sim's default; "
-                             "dry-robot's own default is 2) [20]")
+                        help="the robot's cbgo/scene/state rate, Hz (the default of both "
+                             "mujoco-sim and dry-robot) [20]")
     parser.add_argument("--action-s", type=float, default=0.0,
                         help="dry-robot: seconds each action takes [0]")
     parser.add_argument("--intent-samples", type=int, default=None,

@@ -23,9 +23,10 @@ from dataclasses import dataclass, field
 
 from cbgo import keys as K
 from cbgo import wire
+from cbgo.cli.status import query_status
 from cbgo.demo.inbox import Heard, Inbox
 from cbgo.demo.session import Session, Step, goal_failures, world_of
-from cbgo.errors import CbgoError
+from cbgo.errors import CbgoError, RejectedMessage
 
 EPISODE_MARGIN_S = 8.0     # after the scenario's duration, how long the episode may still take
 INTENT_TIMEOUT_S = 5.0     # episode summary -> intent
@@ -121,12 +122,22 @@ class Runner:
     # ---------------------------------------------------------------- queries
 
     def query(self, key: str, message: dict, timeout: float = 10.0) -> dict:
-        """Returns the first reply to a query; raises DemoError on an error or no reply."""
+        """Returns the first reply to a query, checked against the contract.
+
+        Raises:
+            DemoError: an error reply, a malformed reply, or no reply within `timeout`.
+        """
+        suffix = key.removeprefix(self.keys.prefix + "/")
         for reply in self.session.get(key, payload=wire.encode(message), timeout=timeout):
             if reply.ok is None:
                 raise DemoError(f"{key}: error reply: "
                                 f"{reply.err.payload.to_bytes().decode(errors='replace')}")
-            return wire.decode(reply.ok.payload.to_bytes())
+            try:
+                return wire.decode_checked(reply.ok.payload.to_bytes(),
+                                           wire.REPLY_SCHEMAS.get(suffix), key,
+                                           wire.max_bytes_for(suffix))
+            except RejectedMessage as e:
+                raise DemoError(f"malformed reply: {e}") from None
         raise DemoError(f"{key}: no reply within {timeout:g} s (is the service running?)")
 
     def reset(self, scene: dict, timeout: float = 120.0) -> dict:
@@ -139,10 +150,7 @@ class Runner:
 
     def status(self, service: str, timeout: float = 3.0) -> dict | None:
         """Returns a service's status reply, or None if it does not answer."""
-        try:
-            return self.query(self.keys.ctl(service, "status"), {"v": 1}, timeout)
-        except DemoError:
-            return None
+        return query_status(self.session, self.keys, service, timeout).get(service)
 
     # ---------------------------------------------------------------- session
 
@@ -314,8 +322,9 @@ class Runner:
         return any(f.step == index and f.phase == phase for f in self.faults)
 
     def pids(self) -> dict[str, int | None]:
-        """Returns every expected process's pid, from its status reply."""
-        return {name: (self.status(name) or {}).get("pid") for name in self.expected()}
+        """Returns every expected process's pid, from one status query to all of them."""
+        statuses = query_status(self.session, self.keys, "*")
+        return {name: statuses.get(name, {}).get("pid") for name in self.expected()}
 
     def kill_scheduled(self, index: int, phase: str, at: float,
                        pids: dict[str, int | None] | None = None) -> None:
@@ -356,10 +365,11 @@ class Runner:
         recovery.gone_s = None if gone is None else gone - killed_at
         recovery.back_s = None if back is None else back - killed_at
         recovery.all_back_s = time.time() - killed_at if all_back else None
-        recovery.pid_after = (self.status(target) or {}).get("pid")
+        now = self.pids()
+        recovery.pid_after = now[target]
         recovery.others_restarted = sorted(
             name for name, pid in pids.items() if name != target and pid is not None
-            and (self.status(name) or {}).get("pid") != pid)
+            and now[name] != pid)
         back_text = "never" if recovery.back_s is None else f"after {recovery.back_s:.2f} s"
         self.say(f"{self.clock()}  {target} is back {back_text} as pid {recovery.pid_after}"
                  + (f"; also restarted: {recovery.others_restarted}"
