@@ -44,6 +44,7 @@ def check_story(done, result):
     assert [(s["intent"]["status"], s["intent"]["action"], s["intent"]["object"])
             for s in result["steps"]] == STORY
     assert done.returncode == 0, done.stdout[-3000:]
+    assert result["rejected_messages"] == 0  # every message on the followed keys was valid
     put_into = result["steps"][2]["plan"]["sequence"]
     assert ["open", "drawer1", "done"] in put_into  # the tree repaired the closed drawer
     assert put_into[-1] == ["put_into", "drawer1", "done"]

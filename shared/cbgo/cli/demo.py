@@ -232,6 +232,8 @@ def _run_session(args, script, robot: str, out: Path, say, lines: list[str]) -> 
         (out / "timeline.txt").write_text("\n".join(lines) + "\n")
         return 1
     results, timing = report
+    # Messages on the followed keys that broke the contract were skipped by the timeline.
+    timing["rejected_messages"] = inbox.rejected
     plotted = results and _plot(out / "session.mcap",
                                 _plot_episode(results, args.plot_step), out / "episode.png", say)
     return _report(args, script, robot, out, results, runner.recoveries, timing, bool(plotted),
@@ -279,6 +281,9 @@ def _report(args, script, robot, out, results, recoveries, timing, plotted, say,
     passed = sum(r.ok for r in results)
     say(f"\nsession '{script.name}': {passed}/{len(results)} steps as scripted in "
         f"{timing['session_s']:.1f} s (robot: {robot}; ready after {timing['ready_s']:.1f} s)")
+    if timing["rejected_messages"]:
+        say(f"warning: {timing['rejected_messages']} messages broke the contract and were "
+            "ignored (see `cbgo echo` for which)")
     for r in results:
         mark = "ok " if r.ok else "FAIL"
         intent = r.intent or {}
