@@ -38,13 +38,34 @@ def default_model_path() -> Path:
     return Path(str(resources.files("cbgo.services.intent").joinpath("models", "ours.json")))
 
 
+def user_model_path(kind: str = "ours", env=None) -> Path:
+    """Returns where `cbgo train intent` writes a model of `kind` (no suffix).
+
+    ``<data dir>/models/intent-<kind>`` (``.pt`` + ``.json``), beside the static-gesture
+    service's ``<data dir>/models/static-gesture``: trainers never write into the package.
+    """
+    return data_dir(env) / "models" / f"intent-{kind.lower()}"
+
+
+def served_model_path(env=None) -> Path:
+    """Returns the model the service serves by default: the user's trained one, else shipped.
+
+    The user's is ``<data dir>/models/intent-ours`` when both its ``.pt`` and ``.json`` exist.
+    """
+    user = user_model_path("ours", env)
+    if user.with_suffix(".pt").is_file() and user.with_suffix(".json").is_file():
+        return user.with_suffix(".json")
+    return default_model_path()
+
+
 @dataclass
 class IntentSettings:
     """Settings of the intent service (flags ``--min-confidence`` ... or env ``CBGO_...``)."""
 
     model_path: str | None = field(default=None, metadata=_help(
-        "the model to serve (<base>.pt + <base>.json, from `cbgo train intent`); default: the "
-        "shipped services/intent/models/ours"))
+        "the model to serve (<base>.pt + <base>.json, from `cbgo train intent`); default: "
+        "<data dir>/models/intent-ours if `cbgo train intent` wrote it, else the shipped "
+        "services/intent/models/ours"))
     min_confidence: float = field(default=0.5, metadata=_help(
         "below this probability the best feasible intent is low_confidence and not acted on"))
     accept_repairable: bool = field(default=True, metadata=_help(
@@ -97,7 +118,7 @@ class Intent(Service):
         torch.set_num_threads(1)  # tiny networks: threads only cost (2-core machines)
         s = self.settings
         self.ctx = ctx
-        model = OursModel.load(s.model_path or default_model_path())
+        model = OursModel.load(s.model_path or served_model_path())
         personal = None
         if s.personalise:
             root = Path(s.personal_dir) if s.personal_dir else data_dir() / "intent"

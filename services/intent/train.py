@@ -3,12 +3,16 @@
 By default: cbgo's order-invariant model on 8000 observations of D4 (seed 0) with repairable
 intents (``--repairable``, see `cbgo.services.intent.datasets`: the planner opens a closed
 drawer, sets a held object aside), checked on 2000 fresh observations of the paper's D4 and
-2000 of D4 with repairable intents, written to ``services/intent/models/ours`` (``.pt``
-state_dict + ``.json`` metadata) — the shipped default model. The same command reproduces it.
+2000 of D4 with repairable intents, written to the data directory (`cbgo.config.data_dir`:
+``CBGO_DATA_DIR``, else ``~/.local/share/cbgo``) as ``<data dir>/models/intent-ours`` (``.pt``
+state_dict + ``.json`` metadata), which the intent service serves before its shipped default.
+Trainers never write into the installed package; the shipped default model
+(``services/intent/models/ours``) is this command with ``--out services/intent/models/ours``.
 
 Examples::
 
-    cbgo train intent                              # the shipped default model
+    cbgo train intent                              # <data dir>/models/intent-ours: served
+    cbgo train intent --out services/intent/models/ours   # rebuild the shipped model (checkout)
     cbgo train intent --no-repairable --out /tmp/ours-paper   # the paper's D4 only
     cbgo train intent --dataset D5 -n 4000 --out /tmp/ours-d5
     cbgo train intent --model M5 --out /tmp/m5     # one of the paper's fixed-slot models
@@ -25,6 +29,7 @@ import torch
 
 from cbgo.services.intent import datasets
 from cbgo.services.intent.decide import decide_arrays, joint_correct
+from cbgo.services.intent.main import user_model_path
 from cbgo.services.intent.models import (
     MODEL_KINDS,
     STEPS,
@@ -54,12 +59,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also train on intents the planner makes feasible (put into a "
                              "closed drawer, pick up while holding) [on]")
     parser.add_argument("--out", type=Path, default=None,
-                        help="model path without suffix [services/intent/models/<model>]")
+                        help="model path without suffix [<data dir>/models/intent-<model>]")
 
 
 def default_out(kind: str) -> Path:
-    """Returns where the service looks for a model of `kind`."""
-    return Path(__file__).parent / "models" / kind.lower()
+    """Returns where a model of `kind` is written by default: the data directory.
+
+    ``<data dir>/models/intent-<kind>``; the service serves ``intent-ours`` from there before
+    its shipped default (`cbgo.services.intent.main.served_model_path`).
+    """
+    return user_model_path(kind)
 
 
 def evaluate(model: OursModel | SlotModel, test: datasets.Dataset,
