@@ -16,6 +16,9 @@ Rules (the model files are written by ``cbgo.services.static_gesture.train``):
   hand is mirrored into the left-hand space of the real recordings and one model serves both
   hands. The thumb-metacarpal features 2..5 follow the recording device's convention for a
   zero-length bone and are left out of ``inputs`` by the trainer (see ``train``).
+- ``transform`` (optional): ``"invariant-1"`` makes the network read the 45 device-independent
+  features derived from the 57 (``invariant.derive``), and ``inputs`` index those; absent or
+  null, ``inputs`` index the 57 themselves (models trained before it).
 - Posterior averaging: at load, ``samples`` weight sets are drawn from the variational
   posterior q(w) (seeded by the weights' hash, so the same model gives the same draws) and kept
   as stacked numpy arrays; a prediction is the mean of the softmax over those networks. Fixed
@@ -42,6 +45,7 @@ from cbgo import bayes
 from cbgo.config import data_dir
 from cbgo.errors import ConfigError
 from cbgo.hands import features as F
+from cbgo.services.static_gesture import invariant
 
 KIND = "static-gesture"
 NONE = "none"
@@ -183,6 +187,7 @@ class StaticClassifier:
     std: np.ndarray = field(repr=False)
     path: Path | None = None
     samples: int = DEFAULT_SAMPLES
+    transform: str | None = None
 
     @classmethod
     def from_model(cls, model: bayes.BayesMLP, metadata: dict, samples: int = DEFAULT_SAMPLES,
@@ -199,6 +204,7 @@ class StaticClassifier:
         return cls(names=list(metadata["names"]), model_id=model_id_of(sha), metadata=metadata,
                    posterior=Posterior.draw(model, samples, int(sha[:8], 16)),
                    inputs=np.asarray(metadata["inputs"], dtype=np.int64),
+                   transform=metadata.get("transform"),
                    mean=np.asarray(metadata["standardizer"]["mean"], dtype=np.float64),
                    std=np.asarray(metadata["standardizer"]["std"], dtype=np.float64),
                    path=path, samples=samples)
@@ -234,6 +240,8 @@ class StaticClassifier:
         x = np.atleast_2d(np.asarray(features, dtype=np.float64))
         if len(x) == 0:
             return np.zeros((0, len(self.names)))
+        if self.transform == invariant.TRANSFORM:
+            x = invariant.derive(x)
         return self.posterior.predict((x[:, self.inputs] - self.mean) / self.std)
 
     def classify_hands(self, hands: list[dict]) -> np.ndarray:
@@ -271,9 +279,14 @@ def check_metadata(meta: dict, arch: bayes.Architecture) -> None:
     if len(names) != arch.n_out or len(set(names)) != len(names) or not all(names):
         raise ConfigError(f"model names {names} do not match its {arch.n_out} outputs "
                           "(or are not unique)")
+    transform = meta.get("transform")
+    if transform not in (None, invariant.TRANSFORM):
+        raise ConfigError(f"model feature transform {transform!r} is unknown to this cbgo "
+                          f"(knows {invariant.TRANSFORM!r}); retrain with `cbgo train static`")
+    width = F.N_FEATURES if transform is None else invariant.N_DERIVED
     inputs = meta["inputs"]
-    if len(inputs) != arch.n_in or not all(0 <= int(i) < F.N_FEATURES for i in inputs):
-        raise ConfigError(f"model inputs must be {arch.n_in} feature indices in 0..56")
+    if len(inputs) != arch.n_in or not all(0 <= int(i) < width for i in inputs):
+        raise ConfigError(f"model inputs must be {arch.n_in} feature indices in 0..{width - 1}")
     std = meta["standardizer"]
     if len(std.get("mean", ())) != arch.n_in or len(std.get("std", ())) != arch.n_in:
         raise ConfigError(f"model standardizer must have {arch.n_in} means and stds")
