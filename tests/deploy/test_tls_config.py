@@ -137,7 +137,7 @@ def test_the_router_listens_on_tls_only_and_checks_its_own_health_over_tls(servi
     assert test[:4] == ["CMD", "cbgo", "wait-alive", "router"]
     assert test[test.index("--connect") + 1] == "tls/localhost:7447"
     assert test[test.index("--config") + 1] == CLIENT_IN_CONTAINER
-    assert ("7447", "7447") in [tuple(p.split(":")) for p in router["ports"]]
+    assert {"target": 7447, "published": "${CBGO_PORT:-7447}"} in router["ports"]
 
 
 def test_the_authority_key_is_mounted_nowhere(services):
