@@ -19,7 +19,15 @@ Figures (goals from issue 4 in brackets):
    output validation and encoding). Each figure per wall-clock second and per CPU second of the
    process, with the load average: on a shared machine the wall clock includes waiting for a
    core.
-4. **Latency** through Zenoh: a router, leap-bridge (``static-all`` looping at ``--rate-hz``)
+4. **Real frames of people never seen** (the multi-modal Leap HGR set, when its cache file
+   exists: ``python -m cbgo.services.static_gesture.mmhgr convert SRC``; ``--mmhgr PATH``):
+   the model's own training recipe (its metadata's options) cross-validated by person
+   (``--folds``; 25 = leave-one-person-out): per-class recall and balanced accuracy [≥ 97 %],
+   per person, confusion; rejection of unknown poses held out of training — answered ``none``
+   or with top probability < 0.5 [≥ 90 %]; accuracy by tracking confidence
+   (``cbgo.services.static_gesture.crossval``). ``--no-crossval`` skips it (it trains one model
+   per fold: minutes).
+5. **Latency** through Zenoh: a router, leap-bridge (``static-all`` looping at ``--rate-hz``)
    and static-gesture as real processes; frame ``ts`` (stamped by leap-bridge just before it
    publishes, carried into ``gestures/static``) to the arrival of the gesture message at the
    benchmark's own subscriber, same machine clock: p50/p99/max [p99 ≤ 5 ms]; alongside, the
@@ -31,6 +39,7 @@ Examples::
     cbgo bench static
     cbgo bench static --model /tmp/m --seconds 5 --json /tmp/static.json
     cbgo bench static --no-latency
+    cbgo bench static --folds 25 --no-latency   # leave-one-person-out on the real frames
 """
 
 from __future__ import annotations
@@ -48,7 +57,7 @@ import numpy as np
 from cbgo import keys, wire
 from cbgo.hands.features import hands_features
 from cbgo.metrics import format_confusion
-from cbgo.services.static_gesture import train
+from cbgo.services.static_gesture import crossval, mmhgr, train
 from cbgo.services.static_gesture.classifier import (
     DEFAULT_SAMPLES,
     NONE,
@@ -58,7 +67,7 @@ from cbgo.services.static_gesture.classifier import (
 
 EVAL_RELATIVE = Path("..") / "shared" / "eval" / "leap_static_features_test.npz"
 GOALS = {"real_balanced_accuracy": 0.997, "real_ece": 0.03, "frames_per_s": 1000.0,
-         "latency_p99_ms": 5.0}
+         "latency_p99_ms": 5.0, "unseen_people_accuracy": 0.97, "unknown_rejection": 0.90}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -81,6 +90,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate-hz", type=float, default=120.0,
                         help="latency: leap-bridge frame rate [120]")
     parser.add_argument("--no-latency", action="store_true", help="skip the Zenoh latency part")
+    parser.add_argument("--mmhgr", type=Path, default=None,
+                        help=f"multi-modal Leap HGR cache file [{mmhgr.default_cache()}]")
+    parser.add_argument("--folds", type=int, default=5,
+                        help="cross-validation: groups of people (25: leave-one-person-out) [5]")
+    parser.add_argument("--no-crossval", action="store_true",
+                        help="skip the cross-validation on real frames of unseen people")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
 
 
@@ -303,6 +318,13 @@ def _print(fig: dict) -> None:
                        ("service_handler", "service handler (decode, validate, classify, "
                                            "validate, encode)")):
         print(f"  {label:<68} {t[key + '_fps']:>8.0f} | {t[key + '_fps_cpu']:>8.0f}")
+    cv = fig.get("crossval")
+    if cv is None:
+        print("real frames of unseen people: no multi-modal Leap HGR cache "
+              f"({mmhgr.default_cache()}; see cbgo.services.static_gesture.mmhgr) or "
+              "--no-crossval; skipped")
+    else:
+        crossval.print_figures(cv)
     lat = fig.get("latency")
     if lat:
         print(f"latency frame → gestures/static through Zenoh ({lat['messages']} messages at "
@@ -333,6 +355,7 @@ def _indent(text: str) -> str:
 
 def _goals(fig: dict) -> list[tuple[str, bool | None, str]]:
     real, t, lat = fig.get("real"), fig["throughput"], fig.get("latency")
+    cv = fig.get("crossval")
     out = [
         ("real-test balanced accuracy ≥ 99.7 %",
          None if real is None else real["balanced_accuracy"] >= GOALS["real_balanced_accuracy"],
@@ -344,10 +367,26 @@ def _goals(fig: dict) -> list[tuple[str, bool | None, str]]:
          f"(batched {t['batch_fps']:.0f}); the whole handler incl. the runtime's decode and "
          f"validation: {t['service_handler_fps']:.0f} ({t['service_handler_fps_cpu']:.0f} per "
          f"CPU second) at load {t['load_average']:.1f}"),
+        ("unseen people: gesture frames right ≥ 97 %",
+         None if cv is None else cv["accuracy"] >= GOALS["unseen_people_accuracy"],
+         "skipped" if cv is None else f"{cv['accuracy']:.2%} (balanced "
+         f"{cv['balanced_accuracy']:.2%}, {cv['folds']} folds of people)"),
+        ("unknown poses held out of training rejected ≥ 90 %",
+         None if cv is None else cv["rejection_overall"] >= GOALS["unknown_rejection"],
+         "skipped" if cv is None else f"{cv['rejection_overall']:.1%}"),
         ("p99 latency ≤ 5 ms", None if not lat else lat["p99_ms"] <= GOALS["latency_p99_ms"],
          "skipped" if not lat else f"{lat['p99_ms']:.2f} ms"),
     ]
     return out
+
+
+def recipe_of(clf: StaticClassifier) -> train.TrainOptions:
+    """Returns the training options a model was made with (defaults for what it lacks)."""
+    known = train.TrainOptions.__dataclass_fields__
+    saved = {k: v for k, v in (clf.metadata.get("options") or {}).items() if k in known}
+    if "features" not in saved:  # a model from before the device-independent features
+        saved.update(features="raw", mmhgr=False, off_vocabulary=0)
+    return train.TrainOptions(**saved)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -364,6 +403,11 @@ def run(args: argparse.Namespace) -> int:
     hands, labels = scenario_frames([1000 + args.seed + i for i in range(args.scenario_seeds)])
     fig["simulated"] = simulated(clf, args.per_gesture, args.seed, hands, labels)
     fig["throughput"] = throughput(clf, hands[:args.frames], clf.path or model_path)
+    frames = None if args.no_crossval else mmhgr.load(args.mmhgr)
+    if frames is not None:
+        print(f"cross-validating by person ({args.folds} folds, one training each) ...")
+        fig["crossval"] = crossval.crossvalidate(frames, recipe_of(clf), args.folds,
+                                                 args.seed, args.samples, log=print)
     if not args.no_latency:
         fig["latency"] = latency(clf.path or model_path, args.seconds, args.rate_hz,
                                  args.samples)

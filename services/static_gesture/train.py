@@ -61,9 +61,10 @@ from cbgo import bayes
 from cbgo.config import data_dir
 from cbgo.hands import features as F
 from cbgo.hands.data import load_real_features, real_features_sha256
-from cbgo.hands.model import HandPose, HandShape, blend, build_hands, neutral_pose
+from cbgo.hands.model import HandPose, HandShape, blend, build_hands, clip_to_limits, neutral_pose
 from cbgo.hands.poses import correlated_normal, gesture_pose
 from cbgo.metrics import expected_calibration_error
+from cbgo.services.static_gesture import invariant, mmhgr
 from cbgo.services.static_gesture.classifier import (
     KIND,
     NONE,
@@ -75,6 +76,8 @@ from cbgo.services.static_gesture.classifier import (
 )
 
 INPUTS = tuple(j for j in range(F.N_FEATURES) if j not in F.UNTRUSTED_FEATURES)
+"""Inputs of a model on the raw 57 features (``features="raw"``)."""
+SOURCES = ("real", "simulated", "none", "user", "mmhgr", "mmhgr_none")
 USER_MIN_ROWS = 300
 NONE_BLEND_MAX = 0.25  # how far a no-gesture hand may be into forming a gesture
 _DEG = np.pi / 180.0
@@ -98,6 +101,17 @@ class TrainOptions:
     none_weight: float = 1.0
     seed: int = 0
     user_gestures: bool = True
+    off_vocabulary: int = 1200
+    features: str = invariant.TRANSFORM
+    mmhgr: bool = True
+    mmhgr_stride: int = 3
+    augment_copies: int = 1
+    rotate_deg: float = 10.0
+
+    def __post_init__(self):
+        if self.features not in ("raw", invariant.TRANSFORM):
+            raise ValueError(f"features must be 'raw' or {invariant.TRANSFORM!r}, got "
+                             f"{self.features!r}")
 
 
 # --------------------------------------------------------------------------- simulated data
@@ -166,6 +180,58 @@ def simulate_none(count: int, gestures: list[str], rng: np.random.Generator) -> 
         if rng.random() < 0.6:
             target = gesture_pose(gestures[int(rng.integers(len(gestures)))], rng)
             pose = blend(pose, target, float(rng.uniform(0.0, NONE_BLEND_MAX)))
+        poses.append(_turned(pose, rng))
+    return _features(rng, _shapes(rng, count), poses)
+
+
+# Finger patterns (index, middle, ring, pinky extended = 1) of the vocabulary, whatever the
+# thumb does: grab/thumbsup 0000, point 1000, two 1100, three 1110 (either way of counting),
+# four/five 1111, pinch 0111 (thumb on index, the others open). Every other pattern is a pose
+# outside the vocabulary.
+VOCABULARY_PATTERNS = ((0, 0, 0, 0), (1, 0, 0, 0), (1, 1, 0, 0), (1, 1, 1, 0), (1, 1, 1, 1),
+                       (0, 1, 1, 1))
+OFF_VOCABULARY = tuple(p for p in np.ndindex(2, 2, 2, 2) if p not in VOCABULARY_PATTERNS)
+
+
+def simulate_off_vocabulary(count: int, rng: np.random.Generator) -> np.ndarray:
+    """Simulated poses outside the vocabulary: the finger patterns no gesture uses.
+
+    Each pose takes one of `OFF_VOCABULARY`'s patterns (thumb out or in at random): an extended
+    finger has ``five``'s angles, a curled one ``grab``'s, each moved 0–20 % towards the other;
+    every third pose is instead the half-open hand (all four fingers 35–65 % curled, ±8 %);
+    then every joint jittered by an 8° correlated spread, the palm held like a random gesture
+    of the vocabulary and turned by N(0, 10°). They teach the ``none`` class what "not one of
+    mine" looks like beyond relaxed hands, without using any real unknown pose.
+
+    Args:
+        count: how many.
+        rng: the random generator.
+
+    Returns:
+        Features (count, 57) on the recorded side.
+    """
+    if count <= 0:
+        return np.zeros((0, F.N_FEATURES))
+    from cbgo.hands.poses import STATIC_GESTURES, gesture_mean  # noqa: PLC0415
+
+    open_, curled = gesture_mean("five").to_vector(), gesture_mean("grab").to_vector()
+    jitter = np.r_[np.full(21, 8.0 * _DEG), np.zeros(3)]
+    poses = []
+    for n in range(count):
+        pattern = OFF_VOCABULARY[int(rng.integers(len(OFF_VOCABULARY)))]
+        # curl per finger (0 open .. 1 curled): thumb, index, middle, ring, pinky
+        curl = [float(rng.uniform(0.8, 1.0) if bent else rng.uniform(0.0, 0.2))
+                for bent in [int(rng.integers(2)) == 0, *[not e for e in pattern]]]
+        if n % 3 == 2:  # the half-open hand: every finger half curled, the thumb anywhere
+            middle = float(rng.uniform(0.35, 0.65))
+            curl[1:] = list(np.clip(middle + rng.normal(0.0, 0.08, 4), 0.25, 0.75))
+        v = open_.copy()
+        for f, t in enumerate(curl):
+            block = slice(0, 5) if f == 0 else slice(5 + 4 * (f - 1), 9 + 4 * (f - 1))
+            v[block] = (1 - t) * open_[block] + t * curled[block]
+        held = gesture_mean(STATIC_GESTURES[int(rng.integers(len(STATIC_GESTURES)))])
+        v[21:] = held.to_vector()[21:]
+        pose = HandPose.from_vector(clip_to_limits(v + correlated_normal(rng) * jitter))
         poses.append(_turned(pose, rng))
     return _features(rng, _shapes(rng, count), poses)
 
@@ -271,23 +337,64 @@ class Dataset:
 
     def summary(self) -> dict:
         """Rows per class and per source."""
+        per_source = {s: int((self.source == s).sum()) for s in SOURCES}
         return {"rows": len(self.y),
                 "per_class": {n: int((self.y == i).sum()) for i, n in enumerate(self.names)},
-                "per_source": {s: int((self.source == s).sum())
-                               for s in ("real", "simulated", "none", "user")}}
+                "per_source": {s: c for s, c in per_source.items()
+                               if c or s in ("real", "simulated", "none", "user")}}
+
+
+def mmhgr_rows(frames: mmhgr.Frames, names: list[str], options: TrainOptions,
+               rng: np.random.Generator, unknown: tuple[str, ...] = mmhgr.UNKNOWN_POSES
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows of the multi-modal Leap HGR set: its gestures, and unknown poses as ``none``.
+
+    Every ``mmhgr_stride``-th frame of a pose is kept (neighbouring frames are near-identical),
+    turned by N(0, ``rotate_deg``) in roll, pitch and yaw about its palm (a hand held at
+    another angle, a sensor mounted another way).
+
+    Args:
+        frames: the converted frames (`mmhgr.load`), only of the people to train on.
+        names: the model's classes (``none`` among them for the unknown poses to count).
+        options: stride, rotation and seed.
+        rng: the random generator.
+        unknown: the dataset poses to train as ``none``.
+
+    Returns:
+        ``(x, y, source)``: features (N, 57), labels into ``names``, "mmhgr" / "mmhgr_none".
+    """
+    labels = frames.labels()
+    keep = np.zeros(len(frames), dtype=bool)
+    keep[:: max(1, options.mmhgr_stride)] = True
+    known = keep & np.isin(labels, names)
+    none = keep & np.isin(frames.pose, unknown) & (NONE in names)
+    sel = np.flatnonzero(known | none)
+    sub = frames.subset(sel)
+    rot = mmhgr.random_rotations(rng, len(sel), options.rotate_deg) if options.rotate_deg else None
+    x = mmhgr.features57(sub, rot)
+    y = np.array([names.index(lab) if lab in names else names.index(NONE)
+                  for lab in labels[sel]], dtype=np.int64)
+    source = np.where(known[sel], "mmhgr", "mmhgr_none")
+    return x, y, source
 
 
 def build_dataset(options: TrainOptions, real: tuple | None = None,
-                  user: list[UserGesture] | None = None, stream: int = SIM_STREAM_TRAIN
-                  ) -> Dataset:
-    """Assembles the training set: real + simulated + none + the user's gestures.
+                  user: list[UserGesture] | None = None, stream: int = SIM_STREAM_TRAIN,
+                  frames: mmhgr.Frames | None = None,
+                  unknown: tuple[str, ...] = mmhgr.UNKNOWN_POSES) -> Dataset:
+    """Assembles the training set: real + simulated + none + MMHGR + the user's gestures.
 
     Args:
         options: counts and seed.
         real: ``(x, y, names)`` of real recordings (default: all vendored ones).
         user: recorded gestures (default: the user's, if ``options.user_gestures``).
         stream: the simulation seed stream.
+        frames: multi-modal Leap HGR frames to train on; by default the whole cache
+            (`mmhgr.load`) when ``options.mmhgr`` and ``real`` is the default, else none.
+        unknown: which of its unknown poses train ``none``.
     """
+    if frames is None and real is None and options.mmhgr:
+        frames = mmhgr.load()
     x_real, y_real, base = real if real is not None else load_real_features()
     if user is None:
         user = load_user_gestures() if options.user_gestures else []
@@ -297,19 +404,42 @@ def build_dataset(options: TrainOptions, real: tuple | None = None,
     x_sim, y_sim = simulate_gestures(list(base), options.per_gesture, rng)
     parts = [(x_real, y_real, "real"), (x_sim, y_sim, "simulated")]
     if options.none > 0:
-        x_none = simulate_none(options.none, list(base), rng)
+        x_none = np.concatenate([simulate_none(options.none, list(base), rng),
+                                 simulate_off_vocabulary(options.off_vocabulary, rng)])
         parts.append((x_none, np.full(len(x_none), names.index(NONE)), "none"))
+    if frames is not None and len(frames):
+        x_m, y_m, s_m = mmhgr_rows(frames, names, options, rng, unknown)
+        parts.append((x_m, y_m, s_m))
     for g in user:
         label = names.index(NONE if g.name == NONE else g.name)
         rows = augment(g.x, USER_MIN_ROWS, rng)
         parts.append((rows, np.full(len(rows), label), "user"))
+    if options.features != "raw":
+        # Device- and person-style copies of the recorded rows (real, MMHGR): the simulated
+        # ones already vary in size, placement and angle.
+        for x, y, src in [p for p in parts if p[2] is not None and _recorded(p[2])]:
+            for _ in range(options.augment_copies):
+                parts.append((invariant.augment(x, rng), y, src))
     return Dataset(
         x=np.concatenate([p[0] for p in parts]), y=np.concatenate([p[1] for p in parts]),
-        names=names, source=np.concatenate([np.full(len(p[1]), p[2]) for p in parts]),
+        names=names, source=np.concatenate([np.broadcast_to(p[2], len(p[1])) for p in parts]),
         user_gestures=[{"name": g.name, "rows": len(g.x), "takes": g.takes} for g in user])
 
 
+def _recorded(source) -> bool:
+    first = source if isinstance(source, str) else (source[0] if len(source) else "")
+    return str(first) in ("real", "mmhgr", "mmhgr_none")
+
+
 # --------------------------------------------------------------------------- training
+
+
+def model_inputs(x57: np.ndarray, features: str) -> tuple[np.ndarray, list[int], list[str]]:
+    """Returns (rows the network reads, their feature indices, names) for a feature set."""
+    if features == "raw":
+        return x57[:, list(INPUTS)], list(INPUTS), [F.FEATURE_NAMES[i] for i in INPUTS]
+    return invariant.derive(x57), list(range(invariant.N_DERIVED)), list(invariant.NAMES)
+
 
 
 @dataclass
@@ -331,8 +461,7 @@ def fit(data: Dataset, options: TrainOptions, progress: bool | str = False) -> T
         progress: show a progress bar (or its description).
     """
     t0 = time.perf_counter()
-    inputs = np.asarray(INPUTS)
-    x = data.x[:, inputs]
+    x, inputs, input_names = model_inputs(data.x, options.features)
     standardizer = bayes.Standardizer.fit(x)
     counts = np.bincount(data.y, minlength=len(data.names)).astype(np.float64)
     share = np.ones(len(data.names))
@@ -357,8 +486,9 @@ def fit(data: Dataset, options: TrainOptions, progress: bool | str = False) -> T
     model.eval()
     metadata = {
         "kind": KIND, "names": data.names, "none_class": NONE if NONE in data.names else None,
-        "inputs": list(INPUTS), "feature_version": F.FEATURE_VERSION,
-        "feature_names": [F.FEATURE_NAMES[i] for i in INPUTS],
+        "inputs": inputs, "feature_version": F.FEATURE_VERSION,
+        "transform": None if options.features == "raw" else options.features,
+        "feature_names": input_names,
         "standardizer": standardizer, "data_hash": bayes.data_hash(data.x, data.y),
         "real_data_sha256": real_features_sha256(), "train": config,
         "options": asdict(options), "dataset": data.summary(),
@@ -517,6 +647,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--prior-sigma", type=float, default=d.prior_sigma,
                         help=f"std of the Normal prior of every weight [{d.prior_sigma}]")
     parser.add_argument("--seed", type=int, default=d.seed, help=f"[{d.seed}]")
+    parser.add_argument("--off-vocabulary", type=int, default=d.off_vocabulary,
+                        help=f"simulated poses outside the vocabulary, as none "
+                             f"[{d.off_vocabulary}]")
+    parser.add_argument("--features", choices=("raw", invariant.TRANSFORM), default=d.features,
+                        help=f"the network's inputs [{d.features}]")
+    parser.add_argument("--no-mmhgr", action="store_true",
+                        help="leave out the multi-modal Leap HGR frames even if their cache "
+                             f"exists ({mmhgr.default_cache()})")
+    parser.add_argument("--mmhgr-stride", type=int, default=d.mmhgr_stride,
+                        help=f"keep every Nth frame of that set [{d.mmhgr_stride}]")
     parser.add_argument("--no-user-gestures", action="store_true",
                         help="leave out the gestures recorded by demonstration")
     parser.add_argument("--validate", action="store_true",
@@ -529,6 +669,8 @@ def options_from(args: argparse.Namespace) -> TrainOptions:
     return TrainOptions(per_gesture=args.per_gesture, none=0 if args.no_none else args.none,
                         hidden=list(args.hidden), epochs=args.epochs, lr=args.lr,
                         prior_sigma=args.prior_sigma, seed=args.seed,
+                        off_vocabulary=args.off_vocabulary, features=args.features,
+                        mmhgr=not args.no_mmhgr, mmhgr_stride=args.mmhgr_stride,
                         user_gestures=not (args.no_user_gestures or args.shipped))
 
 
@@ -564,7 +706,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"trained {model_id} on {summary['rows']} rows "
           f"({', '.join(f'{k} {v}' for k, v in summary['per_source'].items() if v)}); "
           f"classes: {', '.join(trained.metadata['names'])}")
-    print(f"network {len(INPUTS)} → {' → '.join(map(str, options.hidden))} → "
+    print(f"network {len(trained.metadata['inputs'])} → {' → '.join(map(str, options.hidden))} → "
           f"{len(trained.metadata['names'])}, {options.epochs} epochs, final -ELBO/row "
           f"{trained.history[-1]:.4f}; {time.perf_counter() - t0:.1f} s in all "
           f"({trained.seconds:.1f} s training)")

@@ -25,15 +25,33 @@ def test_the_data_set_holds_real_simulated_no_gesture_and_user_rows_in_name_orde
     rng = np.random.default_rng(0)
     horns = train.UserGesture("horns", rng.normal(0, 1, (5, 57)), [take()])
     grab = train.UserGesture("grab", rng.normal(0, 1, (400, 57)), [take(count=400)])
-    options = train.TrainOptions(per_gesture=3, none=10)
+    options = train.TrainOptions(per_gesture=3, none=10, off_vocabulary=6)
     data = train.build_dataset(options, small_real(), user=[horns, grab])
     assert data.names == [*STATIC_GESTURES, "horns", "none"]
     summary = data.summary()
-    assert summary["per_source"] == {"real": 240, "simulated": 24, "none": 10,
+    # the real rows come twice: as recorded and with device-style variation
+    assert summary["per_source"] == {"real": 2 * 240, "simulated": 24, "none": 10 + 6,
                                      "user": train.USER_MIN_ROWS + 400}
     assert summary["per_class"]["horns"] == train.USER_MIN_ROWS  # augmented
     assert (data.y[data.source == "none"] == data.names.index("none")).all()
     assert {g["name"] for g in data.user_gestures} == {"horns", "grab"}
+
+
+def test_off_vocabulary_poses_use_no_finger_pattern_of_the_vocabulary():
+    assert len(train.OFF_VOCABULARY) == 16 - len(train.VOCABULARY_PATTERNS)
+    assert not set(train.OFF_VOCABULARY) & set(train.VOCABULARY_PATTERNS)
+    x = train.simulate_off_vocabulary(9, np.random.default_rng(0))
+    assert x.shape == (9, 57) and np.isfinite(x).all()
+
+
+def test_the_raw_feature_set_still_trains_models_on_the_57():
+    options = train.TrainOptions(per_gesture=1, none=2, off_vocabulary=0, hidden=[4], epochs=1,
+                                 features="raw")
+    trained = train.fit(train.build_dataset(options, small_real(), user=[]), options)
+    assert trained.metadata["transform"] is None
+    assert trained.metadata["inputs"] == list(train.INPUTS)
+    clf = train.classifier_of(trained)
+    assert clf.predict_features(small_real()[0][:3]).shape == (3, 9)
 
 
 def test_without_the_no_gesture_class_there_is_no_none_name():

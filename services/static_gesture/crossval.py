@@ -1,0 +1,156 @@
+"""People kept apart: the shipped training recipe cross-validated on real frames, by person.
+
+Data: the multi-modal Leap HGR set (`mmhgr`, 25 people; used when its cache file exists). The
+people are split into ``folds`` groups (``folds`` = the number of people is leave-one-person-
+out); for each group a model is trained exactly as the shipped one (`train.build_dataset` +
+`train.fit` with the same options: the paper's recordings, simulated hands, simulated
+no-gesture and off-vocabulary poses, the dataset's OTHER people) and tested on the group's
+frames, so every test frame is scored by a model that never saw its person.
+
+Unknown poses are held out too: the dataset's unknown poses are split in two halves
+(`POSE_HALVES`); a fold trains ``none`` on one half and measures rejection on the other
+(alternating between folds), so the rejection rate is on poses AND people no model saw. A frame
+counts as rejected when the model answers ``none`` or its top probability is below
+``REJECT_BELOW`` (0.5).
+
+Figures: per-class recall and balanced accuracy of the gestures (a ``none`` answer is wrong),
+per-person accuracy, the confusion, rejection per held-out pose, and accuracy by the tracker's
+confidence (the frame's ``Confidence``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from cbgo.hands.data import load_real_features
+from cbgo.services.static_gesture import mmhgr, train
+from cbgo.services.static_gesture.classifier import NONE
+from cbgo.wire import STATIC_GESTURES
+
+POSE_HALVES = (("ok", "hang", "down"), ("C", "L", "heavy"))
+REJECT_BELOW = 0.5
+CONFIDENCE_BINS = (0.0, 0.25, 0.5, 0.75, 0.9, 1.0001)
+
+
+def person_folds(people: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
+    """Splits people into ``folds`` groups at random (seeded); one person each at most."""
+    rng = np.random.default_rng(seed)
+    folds = max(2, min(int(folds), len(people)))
+    return [np.sort(g) for g in np.array_split(rng.permutation(people), folds)]
+
+
+def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int = 5,
+                  seed: int = 0, samples: int = 32,
+                  log: Callable[[str], None] | None = None) -> dict:
+    """Trains one model per group of held-out people and scores their frames.
+
+    Args:
+        frames: every converted frame (`mmhgr.load`).
+        options: the training recipe (``user_gestures`` is turned off).
+        folds: groups of people; the number of people gives leave-one-person-out.
+        seed: which people go together.
+        samples: posterior samples per prediction.
+        log: called with a line per fold.
+
+    Returns:
+        The figures (see `summarise`) plus ``folds`` and ``seconds``.
+    """
+    options = replace(options, user_gestures=False)
+    real = load_real_features()
+    groups = person_folds(np.unique(frames.user), folds, seed)
+    parts = []
+    t0 = time.monotonic()
+    for k, people in enumerate(groups):
+        trained_on, held_out = POSE_HALVES[k % 2], POSE_HALVES[1 - k % 2]
+        test = np.isin(frames.user, people)
+        data = train.build_dataset(options, real, user=[], frames=frames.subset(~test),
+                                   unknown=trained_on)
+        clf = train.classifier_of(train.fit(data, replace(options, seed=options.seed + k)),
+                                  samples)
+        sub = frames.subset(test)
+        probs = clf.predict_features(mmhgr.features57(sub))
+        parts.append({"frames": sub, "pred": np.array(clf.names)[probs.argmax(1)],
+                      "top": probs.max(1), "held_unknown": np.isin(sub.pose, held_out)})
+        if log:
+            log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
+                f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
+                f"{time.monotonic() - t0:.0f} s")
+    fig = summarise(parts)
+    fig.update(folds=len(groups), people=int(len(np.unique(frames.user))),
+               seconds=time.monotonic() - t0)
+    return fig
+
+
+def summarise(parts: list[dict]) -> dict:
+    """Pools the folds' predictions into the figures.
+
+    Returns:
+        ``{classes, recall, balanced_accuracy, accuracy, n, per_person, confusion, names,
+        rejection: {pose: rate}, rejection_overall, rejection_n, rejection_seen: {pose: rate}
+        (unknown poses other people showed in training), rejection_seen_overall,
+        by_confidence: [...]}``.
+    """
+    pose = np.concatenate([p["frames"].pose for p in parts])
+    label = np.concatenate([p["frames"].labels() for p in parts])
+    user = np.concatenate([p["frames"].user for p in parts])
+    conf = np.concatenate([p["frames"].confidence for p in parts])
+    pred = np.concatenate([p["pred"] for p in parts])
+    top = np.concatenate([p["top"] for p in parts])
+    held = np.concatenate([p["held_unknown"] for p in parts])
+    known = label != ""
+    classes = [g for g in STATIC_GESTURES if (label == g).any()]
+    names = [*classes, *sorted(set(pred[known]) - set(classes) - {NONE}), NONE]
+    recall = [float((pred[label == g] == g).mean()) for g in classes]
+    confusion = [[int(((label == g) & (pred == n)).sum()) for n in names] for g in classes]
+    correct = pred == label
+    per_person = {int(u): float(correct[known & (user == u)].mean())
+                  for u in np.unique(user[known])}
+    rejected = (pred == NONE) | (top < REJECT_BELOW)
+    rejection = {str(q): float(rejected[held & (pose == q)].mean())
+                 for q in np.unique(pose[held])}
+    seen = np.isin(pose, [q for half in POSE_HALVES for q in half]) & ~held
+    rejection_seen = {str(q): float(rejected[seen & (pose == q)].mean())
+                      for q in np.unique(pose[seen])}
+    by_conf = []
+    for lo, hi in zip(CONFIDENCE_BINS[:-1], CONFIDENCE_BINS[1:], strict=True):
+        sel = known & (conf >= lo) & (conf < hi)
+        by_conf.append({"lo": lo, "hi": min(hi, 1.0), "n": int(sel.sum()),
+                        "accuracy": float(correct[sel].mean()) if sel.any() else None})
+    return {"classes": classes, "recall": recall, "balanced_accuracy": float(np.mean(recall)),
+            "accuracy": float(correct[known].mean()), "n": int(known.sum()),
+            "per_person": per_person, "confusion": confusion, "names": names,
+            "rejection": rejection, "rejection_overall": float(rejected[held].mean()),
+            "rejection_n": int(held.sum()), "rejection_seen": rejection_seen,
+            "rejection_seen_overall": float(rejected[seen].mean()) if seen.any() else None,
+            "by_confidence": by_conf}
+
+
+def print_figures(fig: dict) -> None:
+    """Prints the cross-validation figures."""
+    kind = ("leave-one-person-out" if fig["folds"] == fig["people"]
+            else f"{fig['folds']} folds of people")
+    print(f"real frames of unseen people (multi-modal Leap HGR, {fig['people']} people, {kind}; "
+          f"{fig['seconds']:.0f} s): balanced accuracy {fig['balanced_accuracy']:.2%}, frame "
+          f"accuracy {fig['accuracy']:.2%} (n={fig['n']})")
+    print("  per class: " + ", ".join(f"{c} {r:.1%}" for c, r in
+                                      zip(fig["classes"], fig["recall"], strict=True)))
+    acc = np.array(list(fig["per_person"].values()))
+    print(f"  per person: min {acc.min():.1%}, median {np.median(acc):.1%}, max {acc.max():.1%}")
+    head = " " * 12 + "".join(f"{n[:7]:>8}" for n in fig["names"])
+    print("  confusion (rows: true, columns: predicted)\n  " + head)
+    for c, row in zip(fig["classes"], fig["confusion"], strict=True):
+        print(f"  {c[:11]:<12}" + "".join(f"{v:>8}" for v in row))
+    print(f"unknown poses held out of training (none, or top p < {REJECT_BELOW}): "
+          f"{fig['rejection_overall']:.1%} rejected (n={fig['rejection_n']}); " + ", ".join(
+              f"{p} {r:.1%}" for p, r in fig["rejection"].items()))
+    if fig.get("rejection_seen"):
+        print(f"  the same poses where other people's took part in training: "
+              f"{fig['rejection_seen_overall']:.1%} rejected; " + ", ".join(
+                  f"{p} {r:.1%}" for p, r in fig["rejection_seen"].items()))
+    print("accuracy by tracking confidence: " + "; ".join(
+        f"[{b['lo']:.2f}, {b['hi']:.2f}) {b['accuracy']:.1%} (n={b['n']})" if b["n"] else
+        f"[{b['lo']:.2f}, {b['hi']:.2f}) - (n=0)" for b in fig["by_confidence"]))

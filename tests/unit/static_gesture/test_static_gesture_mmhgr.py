@@ -1,0 +1,119 @@
+"""The multi-modal Leap HGR converter and the person-grouped cross-validation, on hands written
+in the data set's layout (the data set itself is never needed by the tests)."""
+
+import numpy as np
+import pytest
+
+from cbgo.hands import features as F
+from cbgo.hands.model import HandShape, build_hand
+from cbgo.hands.poses import gesture_pose
+from cbgo.services.static_gesture import crossval, invariant, mmhgr, train
+
+_POINTS = ("mcpPosition", "pipPosition", "dipPosition", "TipPosition")
+
+
+def _matrix(tag, v):
+    return (f'<{tag} type_id="opencv-matrix">\n<rows>1</rows>\n<cols>3</cols>\n<dt>f</dt>\n'
+            f'<data>\n  {v[0]:.6e} {v[1]:.6e} {v[2]:.6e}</data></{tag}>\n')
+
+
+def frame_xml(hand, confidence=0.9):
+    """One frame file as the data set writes it (OpenCV storage, first image's hand)."""
+    side = hand["side"].capitalize()
+    fingers = ""
+    for name, finger in zip(("Thumb", "Index", "Middle", "Ring", "Pinky"), hand["fingers"],
+                            strict=True):
+        b = finger["bones"]
+        points = (b[1]["prev_joint"], b[2]["prev_joint"], b[3]["prev_joint"],
+                  b[3]["next_joint"])
+        fingers += (f"<{name}>\n<Type>0</Type>\n<isExtended>1</isExtended>\n"
+                    + "".join(_matrix(t, p) for t, p in zip(_POINTS, points, strict=True))
+                    + f"</{name}>\n")
+    hand_xml = (f"<{side}>\n" + _matrix("Center", hand["palm_position"])
+                + _matrix("Normal", hand["palm_normal"])
+                + _matrix("Direction", hand["direction"])
+                + f"<Confidence>{confidence}</Confidence>\n<PinchStrength>0.</PinchStrength>\n"
+                f"<GrabStrength>0.5</GrabStrength>\n<Fingers>\n<nFingers>5</nFingers>\n"
+                + fingers + f"</Fingers>\n</{side}>\n")
+    return ('<?xml version="1.0"?>\n<opencv_storage>\n<Frame>\n<ID>1</ID>\n<Images>\n'
+            f"<RigthImage>\n<Hands>\n<nHands>1</nHands>\n{hand_xml}</Hands>\n</RigthImage>\n"
+            "</Images>\n</Frame>\n</opencv_storage>\n")
+
+
+def _hand(name, side, seed):
+    rng = np.random.default_rng(seed)
+    return build_hand(HandShape.sample(rng, side=side), gesture_pose(name, rng),
+                      np.array([0.0, 200.0, 10.0]))
+
+
+def write_dataset(root, people=(1, 2), poses=("fist_moved", "five", "up", "ok"), per_pose=3):
+    """Writes user_NN/train_pose/<pose>/frame_K.xml files; returns the hands in file order."""
+    gesture_of = {"fist_moved": "grab", "ok": "pinch", "C": "two", **{
+        p: g for p, g in mmhgr.POSE_MAP.items() if p not in ("fist_moved",)}}
+    hands = {}
+    for user in people:
+        for pose in poses:
+            folder = root / f"user_{user:02d}" / "train_pose" / pose
+            folder.mkdir(parents=True)
+            for k in range(per_pose):
+                hand = _hand(gesture_of[pose], "right", 100 * user + k)
+                (folder / f"frame_{k}.xml").write_text(frame_xml(hand, 0.5 + 0.1 * k))
+                hands[(user, pose, k)] = hand
+    return hands
+
+
+def test_a_converted_frame_reads_the_same_as_the_contract_hand_it_came_from(tmp_path):
+    hands = write_dataset(tmp_path / "src")
+    out = tmp_path / "cache.npz"
+    assert mmhgr.convert(tmp_path / "src", out, progress=False) == len(hands)
+    frames = mmhgr.load(out)
+    assert sorted(set(frames.user)) == [1, 2] and set(frames.side) == {"right"}
+    originals = [hands[(int(u), str(p), int(f))] for u, p, f in
+                 zip(frames.user, frames.pose, frames.frame, strict=True)]
+    # the vectorised features are the dict path's, and the device-independent ones are the
+    # original hand's although the file has no wrist and no metacarpals
+    x = mmhgr.features57(frames)
+    assert x == pytest.approx(F.hands_features(mmhgr.hand_dicts(frames), True), abs=1e-9)
+    want = invariant.derive(F.hands_features(originals, to_recorded_side=True))
+    assert invariant.derive(x) == pytest.approx(want, abs=1e-3)
+    assert list(frames.labels()[frames.pose == "up"]) == ["thumbsup"] * 6
+    assert set(frames.labels()[frames.pose == "ok"]) == {""}
+
+
+def test_a_frame_without_a_hand_is_skipped():
+    assert mmhgr.parse_frame("<opencv_storage><Frame><ID>3</ID></Frame></opencv_storage>") is None
+
+
+def test_a_folder_without_frames_is_named(tmp_path):
+    with pytest.raises(FileNotFoundError, match="frame_"):
+        mmhgr.convert(tmp_path, tmp_path / "c.npz")
+
+
+def test_the_loader_says_none_without_a_cache(tmp_path):
+    assert mmhgr.load(tmp_path / "absent.npz") is None
+
+
+def test_derived_features_ignore_the_2pi_jumps_of_the_57():
+    rng = np.random.default_rng(0)
+    x = rng.normal(0.0, 0.5, (20, 57))
+    jumped = x.copy()
+    jumped[:, F.YAW_FEATURES] += 2 * np.pi * rng.integers(-1, 2, (20, len(F.YAW_FEATURES)))
+    assert invariant.derive(jumped) == pytest.approx(invariant.derive(x), abs=1e-9)
+    assert invariant.derive(x).shape == (20, invariant.N_DERIVED)
+
+
+def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp_path):
+    write_dataset(tmp_path / "src", people=(1, 2, 3, 4),
+                  poses=("fist_moved", "five", "up", "ok", "C"), per_pose=2)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    options = train.TrainOptions(per_gesture=2, none=4, off_vocabulary=4, hidden=[4],
+                                 epochs=1, mmhgr_stride=1)
+    lines = []
+    fig = crossval.crossvalidate(frames, options, folds=2, samples=4, log=lines.append)
+    assert fig["folds"] == 2 and len(lines) == 2 and fig["people"] == 4
+    assert fig["classes"] == ["grab", "five", "thumbsup"] and fig["n"] == 4 * 3 * 2
+    assert set(fig["per_person"]) == {1, 2, 3, 4}
+    assert set(fig["rejection"]) <= {"ok", "C"} and fig["rejection_n"] > 0
+    assert sum(b["n"] for b in fig["by_confidence"]) == fig["n"]
+    crossval.print_figures(fig)
