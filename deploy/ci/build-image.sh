@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds cbgo's image from deploy/Dockerfile, or reuses it when nothing it is built from changed.
 #
-#     deploy/ci/build-image.sh            # prints the tag on its last line: cbgo:ci-<hash>
+#     deploy/ci/build-image.sh            # prints the tag, cbgo:ci-<hash> (progress: stderr)
 #
 # The tag is a hash of the build's inputs: every file that the build context lets in (the
 # files git would commit under pyproject.toml, setup.py, MANIFEST.in, README.md, shared/,
@@ -15,6 +15,7 @@
 # CBGO_TORCH_PIP_ARGS overrides both.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+exec 3>&1 1>&2  # progress on stderr; only the tag on stdout (fd 3)
 
 base=$(sed -n 's/^FROM[[:space:]]\+\([^[:space:]]\+\).*/\1/p' deploy/Dockerfile | head -1)
 base_id=$(docker image inspect -f '{{.Id}}' "$base" 2>/dev/null) || {
@@ -83,4 +84,8 @@ PY
     echo "image $tag: built in $(( $(date +%s) - start )) s, $(docker image inspect -f '{{.Size}}' "$tag") bytes"
 fi
 docker tag "$tag" cbgo:latest
-echo "$tag"
+# Keep the two newest images of earlier inputs (fast switching between branches), drop older.
+docker image ls --format '{{.CreatedAt}}\t{{.Repository}}:{{.Tag}}' cbgo | grep -F ':ci-' \
+    | LC_ALL=C sort -r | cut -f2 | grep -v -x -F "$tag" | tail -n +3 \
+    | xargs -r docker image rm >/dev/null 2>&1 || true
+echo "$tag" >&3

@@ -38,12 +38,20 @@ if [ -f /run/cbgo-dockerd.pid ]; then
     trap stop_dockerd EXIT
 fi
 
+# Projects of an earlier run that was stopped before its `down` (their restart policy would
+# bring them back with the engine): removed with their volumes.
+for project in $(docker ps -a --filter label=com.docker.compose.project \
+        --format '{{.Label "com.docker.compose.project"}}' | grep '^cbgo-test-' | sort -u); do
+    echo "test-compose: removing $project, left by an earlier run"
+    docker compose -p "$project" down -v --remove-orphans -t 1 >/dev/null 2>&1 || true
+done
+
 set -e
 base=$(sed -n 's/^FROM[[:space:]]\+\([^[:space:]]\+\).*/\1/p' deploy/Dockerfile | head -1)
 # Where a registry answers, `docker pull python:3.11-slim-bookworm` first uses the real one.
 bash deploy/ci/base-image.sh "$base"
 t0=$(date +%s)
-tag=$(bash deploy/ci/build-image.sh | tee /dev/stderr | tail -1)
+tag=$(bash deploy/ci/build-image.sh)
 echo "test-compose: image $tag ready after $(( $(date +%s) - t0 )) s"
 set +e
 CBGO_COMPOSE_TAG=${tag#cbgo:} "$PY" -m pytest -q -s -p no:cacheprovider tests/compose

@@ -33,7 +33,7 @@ from pathlib import Path
 import pytest
 
 from cbgo import registry
-from cbgo.testing import free_port
+from cbgo.testing import Stack, free_port
 
 REPO = Path(__file__).resolve().parents[2]
 DEPLOY = REPO / "deploy"
@@ -119,6 +119,12 @@ class Project:
                               capture_output=True, text=True, timeout=timeout,
                               env={**os.environ, **(env or {})})
 
+    def watcher(self) -> Stack:
+        """A Zenoh session of the test on the published port (liveliness tokens, queries)."""
+        stack = Stack(self.tmp)
+        stack.endpoint = self.endpoint
+        return stack
+
     def wait_healthy(self, service: str, timeout: float = UP_TIMEOUT_S) -> float:
         """Waits until `service`'s container is running and healthy; returns the seconds."""
         t0 = time.monotonic()
@@ -161,87 +167,91 @@ def service_pid_on_host(container: dict) -> int:
 # --- the default project ------------------------------------------------------------------------
 
 
-class TestDefaultProject:
-    @pytest.fixture(scope="class")
-    def project(self, tmp_path_factory):
-        project = Project(tmp_path_factory.mktemp("default"))
-        try:
-            seconds = project.up()
-            figure(f"default project: up -d to all {len(DEFAULTS)} containers healthy in "
-                   f"{seconds:.1f} s")
-            yield project
-        finally:
-            project.down()
+@pytest.fixture(scope="class")
+def default_project(tmp_path_factory):
+    project = Project(tmp_path_factory.mktemp("default"))
+    try:
+        seconds = project.up()
+        figure(f"default project: up -d to all {len(DEFAULTS)} containers healthy in "
+               f"{seconds:.1f} s")
+        yield project
+    finally:
+        project.down()
 
-    def test_every_container_of_the_default_set_is_healthy(self, project):
-        assert project.health() == dict.fromkeys(DEFAULTS, "healthy")
-        alive = project.cli("wait-alive", *DEFAULTS, "--timeout", "30")
+
+class TestDefaultProject:
+    def test_every_container_of_the_default_set_is_healthy(self, default_project):
+        assert default_project.health() == dict.fromkeys(DEFAULTS, "healthy")
+        alive = default_project.cli("wait-alive", *DEFAULTS, "--timeout", "30")
         assert alive.returncode == 0, alive.stderr
 
-    def test_the_scripted_session_passes_against_the_containers(self, project, tmp_path):
-        seconds, text, result = run_demo(project, tmp_path / "demo")
+    def test_the_scripted_session_passes_against_the_containers(self, default_project, tmp_path):
+        seconds, text, result = run_demo(default_project, tmp_path / "demo")
         ok, total = steps_as_scripted(result)
         assert (ok, total) == (7, 7), text
         figure(f"demo against the containers (mujoco-sim): {ok}/{total} as scripted, "
                f"cbgo demo took {seconds:.1f} s")
 
-    def test_a_crashed_service_is_restarted_by_its_policy_and_rejoins(self, project):
-        before = project.containers()["planner"]
-        os.kill(service_pid_on_host(before), 9)  # the service's process dies, as in a crash
-        t0 = time.monotonic()
-        while project.containers()["planner"]["RestartCount"] == before["RestartCount"]:
-            assert time.monotonic() - t0 < 60, "planner was not restarted"
-            time.sleep(0.2)
-        healthy = project.wait_healthy("planner")
-        back = project.cli("wait-alive", "planner", "--timeout", "60")
-        assert back.returncode == 0, back.stderr
-        after = project.containers()["planner"]
+    def test_a_crashed_service_is_restarted_by_its_policy_and_rejoins(self, default_project):
+        before = default_project.containers()["planner"]
+        with default_project.watcher() as watch:
+            watch.wait_alive(["planner"])
+            os.kill(service_pid_on_host(before), 9)  # the service's process dies, as in a crash
+            t0 = time.monotonic()
+            watch.wait_gone("planner")
+            watch.wait_alive(["planner"], timeout=120)
+            token_s = time.monotonic() - t0
+            default_project.wait_healthy("planner")
+            healthy_s = time.monotonic() - t0
+            watch.status("planner")  # answers its status query: back in the cell
+        after = default_project.containers()["planner"]
         assert after["State"]["StartedAt"] != before["State"]["StartedAt"]
         assert after["RestartCount"] == before["RestartCount"] + 1
-        figure(f"planner's process killed (kill -9): restarted by the policy, healthy again "
-               f"after {time.monotonic() - t0:.1f} s (health check interval 10 s; "
-               f"{healthy:.1f} s of it waiting for healthy)")
-        status = project.cli("status", "planner")
-        assert status.returncode == 0, status.stderr
+        figure(f"planner's process killed (kill -9): restarted by the restart policy, its "
+               f"liveliness token back {token_s:.1f} s after the kill, the container healthy "
+               f"again after {healthy_s:.1f} s (healthcheck every 10 s)")
 
-    def test_a_docker_killed_service_stays_down_until_compose_up_brings_it_back(self, project):
-        name = project.containers()["intent"]["Name"].lstrip("/")
-        subprocess.run(["docker", "kill", name], check=True, capture_output=True)
-        state = project.containers()["intent"]["State"]
-        assert not state["Running"]
-        # A manual stop (docker kill, docker stop) is not a failure: no restart policy applies.
-        gone = project.cli("wait-alive", "intent", "--timeout", "2")
-        assert gone.returncode != 0
-        assert project.containers()["intent"]["RestartCount"] == 0
-        t0 = time.monotonic()
-        project.up("intent")
-        seconds = time.monotonic() - t0
-        back = project.cli("wait-alive", *DEFAULTS, "--timeout", "30")
-        assert back.returncode == 0, back.stderr
-        figure(f"intent after docker kill: back and healthy {seconds:.1f} s after "
+    def test_a_docker_killed_service_stays_down_until_compose_up_brings_it_back(
+            self, default_project):
+        name = default_project.containers()["intent"]["Name"].lstrip("/")
+        with default_project.watcher() as watch:
+            watch.wait_alive(["intent"])
+            subprocess.run(["docker", "kill", name], check=True, capture_output=True)
+            watch.wait_gone("intent")
+            # A manual stop (docker kill, docker stop) is not a failure: no restart policy
+            # applies, so it stays down.
+            state = default_project.containers()["intent"]
+            assert not state["State"]["Running"] and state["RestartCount"] == 0
+            assert "intent" not in watch.alive()
+            t0 = time.monotonic()
+            default_project.up("intent")
+            seconds = time.monotonic() - t0
+            watch.wait_alive(DEFAULTS)
+        figure(f"intent after docker kill: healthy {seconds:.1f} s after "
                "`docker compose up -d --wait intent`")
 
 
 # --- the dry-robot override ---------------------------------------------------------------------
 
 
+@pytest.fixture(scope="class")
+def dry_project(tmp_path_factory):
+    project = Project(tmp_path_factory.mktemp("dry"), "compose.dry-robot.yaml")
+    try:
+        seconds = project.up()
+        figure(f"dry-robot override: up -d to all healthy in {seconds:.1f} s")
+        yield project
+    finally:
+        project.down()
+
+
 class TestDryRobotOverride:
-    @pytest.fixture(scope="class")
-    def project(self, tmp_path_factory):
-        project = Project(tmp_path_factory.mktemp("dry"), "compose.dry-robot.yaml")
-        try:
-            seconds = project.up()
-            figure(f"dry-robot override: up -d to all healthy in {seconds:.1f} s")
-            yield project
-        finally:
-            project.down()
-
-    def test_dry_robot_runs_instead_of_mujoco_sim(self, project):
+    def test_dry_robot_runs_instead_of_mujoco_sim(self, dry_project):
         expected = [n if n != "mujoco-sim" else "dry-robot" for n in DEFAULTS]
-        assert project.health() == dict.fromkeys(expected, "healthy")
+        assert dry_project.health() == dict.fromkeys(expected, "healthy")
 
-    def test_the_scripted_session_passes_on_dry_robot(self, project, tmp_path):
-        seconds, text, result = run_demo(project, tmp_path / "demo", "--robot", "dry")
+    def test_the_scripted_session_passes_on_dry_robot(self, dry_project, tmp_path):
+        seconds, text, result = run_demo(dry_project, tmp_path / "demo", "--robot", "dry")
         ok, total = steps_as_scripted(result)
         assert (ok, total) == (7, 7), text
         figure(f"demo against the dry-robot override: {ok}/{total}, {seconds:.1f} s")
@@ -270,72 +280,74 @@ def certs(tmp_path_factory):
     return root
 
 
+@pytest.fixture(scope="class")
+def tls_project(tmp_path_factory, certs):
+    if os.geteuid() != 0:
+        pytest.skip("giving the keys to the containers' uid needs root")
+    project = Project(tmp_path_factory.mktemp("tls"), "compose.tls.yaml",
+                      env={"CBGO_CERTS": str(certs)})
+    try:
+        seconds = project.up()
+        figure(f"TLS override: up -d to all healthy in {seconds:.1f} s")
+        yield project
+    finally:
+        project.down()
+
+
 class TestTlsOverride:
-    @pytest.fixture(scope="class")
-    def project(self, tmp_path_factory, certs):
-        if os.geteuid() != 0:
-            pytest.skip("giving the keys to the containers' uid needs root")
-        project = Project(tmp_path_factory.mktemp("tls"), "compose.tls.yaml",
-                          env={"CBGO_CERTS": str(certs)})
-        try:
-            seconds = project.up()
-            figure(f"TLS override: up -d to all healthy in {seconds:.1f} s")
-            yield project
-        finally:
-            project.down()
+    def test_every_container_is_healthy_over_tls(self, tls_project):
+        assert tls_project.health() == dict.fromkeys(DEFAULTS, "healthy")
 
-    def test_every_container_is_healthy_over_tls(self, project):
-        assert project.health() == dict.fromkeys(DEFAULTS, "healthy")
-
-    def test_the_operator_certificate_gets_in_over_tls(self, project, certs):
+    def test_the_operator_certificate_gets_in_over_tls(self, tls_project, certs):
         env = {"ZENOH_CONFIG": str(certs / "operator" / "zenoh.json5")}
-        tls = f"tls/127.0.0.1:{project.port}"
-        alive = project.cli("wait-alive", *DEFAULTS, "--timeout", "30", env=env, connect=tls)
+        tls = f"tls/127.0.0.1:{tls_project.port}"
+        alive = tls_project.cli("wait-alive", *DEFAULTS, "--timeout", "30", env=env, connect=tls)
         assert alive.returncode == 0, alive.stdout + alive.stderr
-        listing = project.cli("ls", env=env, connect=tls)
+        listing = tls_project.cli("ls", env=env, connect=tls)
         assert listing.returncode == 0, listing.stderr
         for name in DEFAULTS:
             assert name in listing.stdout
 
-    def test_plain_tcp_is_refused_on_the_published_port(self, project):
-        plain = project.cli("wait-alive", "router", "--timeout", "3", "--connect-timeout", "3")
+    def test_plain_tcp_is_refused_on_the_published_port(self, tls_project):
+        plain = tls_project.cli("wait-alive", "router", "--timeout", "3", "--connect-timeout", "3")
         assert plain.returncode != 0, plain.stdout
 
 
 # --- two projects as two hosts ------------------------------------------------------------------
 
 
+@pytest.fixture(scope="class")
+def remote_projects(tmp_path_factory):
+    brain = Project(tmp_path_factory.mktemp("brain"))
+    robot = None
+    try:
+        brain.up(*[n for n in DEFAULTS if n != "mujoco-sim"])
+        robot = Project(tmp_path_factory.mktemp("robot"), "compose.dry-robot.yaml",
+                        "compose.remote.yaml",
+                        env={"CBGO_ROUTER": f"tcp/host.docker.internal:{brain.port}"})
+        seconds = robot.up("dry-robot", flags=("--no-deps",))
+        figure(f"second project (dry-robot only, joining the first's router through the "
+               f"host's port): healthy in {seconds:.1f} s")
+        yield brain, robot
+    finally:
+        if robot is not None:
+            robot.down()
+        brain.down()
+
+
 class TestRemoteRouter:
     """The robot in a second project that knows the first only by the host's published port."""
 
-    @pytest.fixture(scope="class")
-    def projects(self, tmp_path_factory):
-        brain = Project(tmp_path_factory.mktemp("brain"))
-        robot = None
-        try:
-            brain.up(*[n for n in DEFAULTS if n != "mujoco-sim"])
-            robot = Project(tmp_path_factory.mktemp("robot"), "compose.dry-robot.yaml",
-                            "compose.remote.yaml",
-                            env={"CBGO_ROUTER": f"tcp/host.docker.internal:{brain.port}"})
-            seconds = robot.up("dry-robot", flags=("--no-deps",))
-            figure(f"second project (dry-robot only, joining the first's router through the "
-                   f"host's port): healthy in {seconds:.1f} s")
-            yield brain, robot
-        finally:
-            if robot is not None:
-                robot.down()
-            brain.down()
-
-    def test_the_second_project_runs_only_the_robot(self, projects):
-        brain, robot = projects
+    def test_the_second_project_runs_only_the_robot(self, remote_projects):
+        brain, robot = remote_projects
         assert robot.health() == {"dry-robot": "healthy"}
         assert "dry-robot" not in brain.health() and "router" in brain.health()
         alive = brain.cli("wait-alive", "dry-robot", "--timeout", "30")
         assert alive.returncode == 0, alive.stderr
 
-    def test_the_scripted_session_passes_across_the_two_projects(self, projects, tmp_path):
-        brain, _ = projects
+    def test_the_scripted_session_passes_across_the_two_projects(self, remote_projects, tmp_path):
+        brain, _ = remote_projects
         seconds, text, result = run_demo(brain, tmp_path / "demo", "--robot", "dry")
         ok, total = steps_as_scripted(result)
         assert (ok, total) == (7, 7), text
-        figure(f"demo across two projects (robot remote): {ok}/{total}, {seconds:.1f} s")
+        figure(f"demo across two remote_projects (robot remote): {ok}/{total}, {seconds:.1f} s")
