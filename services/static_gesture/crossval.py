@@ -109,6 +109,11 @@ def summarise(parts: list[dict]) -> dict:
     correct = pred == label
     per_person = {int(u): float(correct[known & (user == u)].mean())
                   for u in np.unique(user[known])}
+    per_style = {}
+    for style, members in tracker_styles(user, conf).items():
+        sel = known & np.isin(user, members)
+        per_style[style] = {"people": [int(u) for u in members], "n": int(sel.sum()),
+                            "accuracy": float(correct[sel].mean()) if sel.any() else None}
     rejected = (pred == NONE) | (top < REJECT_BELOW)
     rejection = {str(q): float(rejected[held & (pose == q)].mean())
                  for q in np.unique(pose[held])}
@@ -122,11 +127,26 @@ def summarise(parts: list[dict]) -> dict:
                         "accuracy": float(correct[sel].mean()) if sel.any() else None})
     return {"classes": classes, "recall": recall, "balanced_accuracy": float(np.mean(recall)),
             "accuracy": float(correct[known].mean()), "n": int(known.sum()),
-            "per_person": per_person, "confusion": confusion, "names": names,
+            "per_person": per_person, "per_style": per_style, "confusion": confusion,
+            "names": names,
             "rejection": rejection, "rejection_overall": float(rejected[held].mean()),
             "rejection_n": int(held.sum()), "rejection_seen": rejection_seen,
             "rejection_seen_overall": float(rejected[seen].mean()) if seen.any() else None,
             "by_confidence": by_conf}
+
+
+def tracker_styles(user: np.ndarray, confidence: np.ndarray) -> dict[str, list[int]]:
+    """Groups people by how their tracker reports confidence.
+
+    The HGR set's recordings fall into two kinds: frames whose confidence varies (Leap SDK v2
+    behaviour) and frames that all say 1.0 (as later tracking software reports it). A person
+    belongs to the second when at least 90 % of their frames say 1.0.
+    """
+    styles: dict[str, list[int]] = {"confidence varies": [], "confidence always 1": []}
+    for u in np.unique(user):
+        fixed = float((confidence[user == u] >= 0.9999).mean()) >= 0.9
+        styles["confidence always 1" if fixed else "confidence varies"].append(int(u))
+    return {k: v for k, v in styles.items() if v}
 
 
 def print_figures(fig: dict) -> None:
@@ -139,7 +159,12 @@ def print_figures(fig: dict) -> None:
     print("  per class: " + ", ".join(f"{c} {r:.1%}" for c, r in
                                       zip(fig["classes"], fig["recall"], strict=True)))
     acc = np.array(list(fig["per_person"].values()))
-    print(f"  per person: min {acc.min():.1%}, median {np.median(acc):.1%}, max {acc.max():.1%}")
+    print(f"  per person: min {acc.min():.1%}, median {np.median(acc):.1%}, max {acc.max():.1%}; "
+          + ", ".join(f"{u}: {a:.1%}" for u, a in fig["per_person"].items()))
+    for style, s in fig.get("per_style", {}).items():
+        people = s["people"]
+        print(f"  tracker style '{style}' (people {', '.join(map(str, people))}): "
+              f"{s['accuracy']:.2%} (n={s['n']})" if s["n"] else f"  {style}: no frames")
     head = " " * 12 + "".join(f"{n[:7]:>8}" for n in fig["names"])
     print("  confusion (rows: true, columns: predicted)\n  " + head)
     for c, row in zip(fig["classes"], fig["confusion"], strict=True):
