@@ -13,6 +13,7 @@ from cbgo.hands import features as F
 from cbgo.hands.data import real_features_sha256
 from cbgo.hands.model import HandShape, build_hand
 from cbgo.hands.poses import gesture_pose
+from cbgo.services.static_gesture import invariant
 from cbgo.services.static_gesture.classifier import (
     StaticClassifier,
     default_model_path,
@@ -116,11 +117,18 @@ def test_the_shipped_model_metadata_is_complete():
     assert meta["kind"] == "static-gesture" and meta["format"] == "cbgo-bnn/1"
     assert meta["names"] == [*STATIC_GESTURES, "none"]
     assert meta["feature_version"] == F.FEATURE_VERSION
-    assert not set(meta["inputs"]) & set(F.UNTRUSTED_FEATURES) and len(meta["inputs"]) == 53
-    assert len(meta["standardizer"]["mean"]) == len(meta["standardizer"]["std"]) == 53
+    # the device-independent features, derived from the 57 (no wrist, metacarpal or thumb-
+    # metacarpal convention)
+    assert meta["transform"] == invariant.TRANSFORM
+    assert meta["inputs"] == list(range(invariant.N_DERIVED))
+    assert meta["feature_names"] == list(invariant.NAMES)
+    assert len(meta["standardizer"]["mean"]) == len(meta["standardizer"]["std"]) == 45
     assert meta["real_data_sha256"] == real_features_sha256()
     assert len(meta["data_hash"]) == 16 and meta["user_gestures"] == []
-    assert meta["dataset"]["per_source"]["real"] == 4477
+    per_source = meta["dataset"]["per_source"]
+    assert per_source["real"] == 2 * 4477  # as recorded, and with device-style variation
+    assert per_source["mmhgr"] > 0 and per_source["mmhgr_none"] > 0  # other people, unknown
+    # poses
     clf = StaticClassifier.load(base)
     assert clf.model_id == meta["model_id"] == "static-bnn-" + meta["weights_sha256"][:8]
 
