@@ -16,6 +16,7 @@ cd "$(dirname "$0")/../.."
 PY=${PY:-.venv/bin/python}
 
 started=$(date +%s)
+rm -f /run/cbgo-dockerd.pid  # engine.sh writes it only if it starts dockerd now
 bash deploy/ci/engine.sh
 rc=$?
 if [ $rc -eq 3 ]; then
