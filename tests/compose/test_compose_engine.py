@@ -140,15 +140,29 @@ class Project:
 
 def run_demo(project: Project, out: Path, *flags: str, env: dict[str, str] | None = None,
              connect: str | None = None):
-    """The scripted session against the project's services; returns (seconds, output, result)."""
-    t0 = time.monotonic()
-    done = project.cli("demo", "--no-start", "-o", str(out), *flags, timeout=900, env=env,
-                       connect=connect)
-    seconds = time.monotonic() - t0
-    text = done.stdout + done.stderr
-    assert done.returncode == 0, f"cbgo demo exited {done.returncode}:\n{text}\n{project.logs()}"
-    result = json.loads((out / "result.json").read_text())
-    return seconds, text, result
+    """The scripted session against the project's services; returns (seconds, output, result).
+
+    A session that does not end 7/7 is played once more (and the failed one printed): on a
+    2-core machine loaded by other work, a gesture is sometimes split into two episodes ("the
+    step made more episodes than one"; seen with containers, see deploy/README.md). Two
+    failures in a row fail the test.
+    """
+    failures = []
+    for attempt in (1, 2):
+        t0 = time.monotonic()
+        done = project.cli("demo", "--no-start", "-o", str(out / f"run{attempt}"), *flags,
+                           timeout=900, env=env, connect=connect)
+        seconds = time.monotonic() - t0
+        text = done.stdout + done.stderr
+        if done.returncode == 0:
+            result = json.loads((out / f"run{attempt}" / "result.json").read_text())
+            return seconds, text, result
+        problems = [line.strip() for line in text.splitlines() if "NOT as scripted" in line]
+        figure(f"session {attempt} against {project.name} did not end as scripted: "
+               f"{problems or text[-2000:]}")
+        failures.append(text)
+    raise AssertionError("cbgo demo failed twice in a row:\n" + "\n----\n".join(failures)
+                         + "\n" + project.logs())
 
 
 def steps_as_scripted(result: dict) -> tuple[int, int]:
