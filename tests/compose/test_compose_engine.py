@@ -364,4 +364,4 @@ class TestRemoteRouter:
         seconds, text, result = run_demo(brain, tmp_path / "demo", "--robot", "dry")
         ok, total = steps_as_scripted(result)
         assert (ok, total) == (7, 7), text
-        figure(f"demo across two remote_projects (robot remote): {ok}/{total}, {seconds:.1f} s")
+        figure(f"demo across two projects (the robot in the second): {ok}/{total}, {seconds:.1f} s")
