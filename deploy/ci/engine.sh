@@ -20,7 +20,7 @@ if ! docker info >/dev/null 2>&1; then
         command -v apt-get >/dev/null || none "dockerd is not installed and there is no apt-get"
         say "installing docker.io and debootstrap (apt)"
         export DEBIAN_FRONTEND=noninteractive
-        { apt-get update -q && apt-get install -y -q --no-install-recommends docker.io \
+        { apt-get update -q && apt-get install -y -q docker.io \
             debootstrap; } >/var/log/cbgo-apt-docker.log 2>&1 \
             || { tail -20 /var/log/cbgo-apt-docker.log >&2; none "apt-get install failed"; }
     fi
