@@ -21,16 +21,15 @@ ROOTS = {"cbgo": "shared/cbgo", "cbgo.services": "services"}
 SKIP = {"__pycache__"}
 
 
-def data_folder_files(package_dir: Path) -> list[str]:
-    """Files under the non-package folders of one package, relative to the package folder."""
+def data_folders(package_dir: Path) -> list[Path]:
+    """The folders under one package's folder that are not packages (no ``__init__.py``)."""
     found = []
     for child in sorted(package_dir.iterdir()):
         if not child.is_dir() or child.name in SKIP or (child / "__init__.py").exists():
             continue
-        for folder, dirs, files in os.walk(child):
-            dirs[:] = sorted(d for d in dirs if d not in SKIP)
-            found += [str((Path(folder) / f).relative_to(package_dir)) for f in sorted(files)
-                      if not f.endswith((".pyc", ".pyo"))]
+        found.append(child)
+        found += [Path(folder) / d for folder, dirs, _ in os.walk(child)
+                  for d in sorted(dirs) if d not in SKIP]
     return found
 
 
@@ -39,8 +38,12 @@ for name, path in ROOTS.items():
     for package in [name] + [f"{name}.{sub}" for sub in find_packages(path)]:
         packages.append(package)
         folder = Path(path, *package.split(".")[len(name.split(".")):])
-        files = data_folder_files(folder)
-        if files:
-            package_data[package] = files
+        # Each data folder is listed as a (namespace) package of its own, all its files as its
+        # data: setuptools warns about, and may one day drop, data in folders that are not.
+        for data in data_folders(folder):
+            dotted = ".".join([package, *data.relative_to(folder).parts])
+            packages.append(dotted)
+            package_data[dotted] = [f.name for f in sorted(data.iterdir()) if f.is_file()
+                                    and not f.name.endswith((".pyc", ".pyo"))]
 
 setup(packages=packages, package_dir=ROOTS, package_data=package_data)
