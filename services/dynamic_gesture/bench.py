@@ -8,7 +8,13 @@
    its frames perform, else ``none``); a true stroke that no end-of-stroke window caught counts
    as predicted ``none``. Printed: the confusion matrix (rows true), per-class recall, balanced
    accuracy, ECE, and the same for the windows evaluated mid-stroke. ``still`` sessions (a hand
-   held still for seconds) add the false strokes of a resting hand to the ``none`` row.
+   held still for seconds) add the false strokes of a resting hand to the ``none`` row. Their
+   strokes start wherever the hand is and cross the middle of the field, mostly without a
+   rest, and come back (the habits fitted to real people). Then ``--streams-sim`` continuous
+   streams (`realbench.run_streams`): one long episode each, the hand never leaving, swipes and
+   rotates among drift, wobble, slow re-positioning and slow palm turns; recall of the strokes
+   and false triggers (a reported gesture, p ≥ 0.5, that no stroke of its name overlaps) per
+   minute outside the strokes.
 2. **Cost.** Time per classification against the whole library (median, p99) on those
    windows, and DTW implementations compared on the same windows: vectorised numpy exact DTW,
    plain-Python exact DTW, fastdtw's exact ``dtw`` and its approximate ``fastdtw`` (radius 1)
@@ -21,9 +27,14 @@
    (``ts``) and to arrival at a subscriber. It includes the ``end_hold_s`` the segmenter waits
    to be sure the hand stopped.
 
+4. **Real people** (``--real DIR``): the SHREC'17 skeletons through live services, see
+   `realbench`; ``--realism DIR`` compares the simulated users' swipe habits with theirs.
+
 Examples::
 
     cbgo bench dynamic
+    cbgo bench dynamic --real ~/.cache/cbgo/shrec17/datasetShrec
+    cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec
     cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
     cbgo bench dynamic --ranges train          # held-out users inside the training range
 """
@@ -40,11 +51,11 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, metrics, wire
-from cbgo.services.dynamic_gesture import simdata
+from cbgo.services.dynamic_gesture import realbench, simdata
 from cbgo.services.dynamic_gesture.classifier import NONE, Classifier, normalised
 from cbgo.services.dynamic_gesture.dtw import dtw_naive, fastdtw_backend
 from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library
-from cbgo.services.dynamic_gesture.stroke import Segmenter
+from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig
 from cbgo.simuser.scenario import load_scenario
 from cbgo.simuser.user import SimulatedUser
 
@@ -60,11 +71,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=BENCH_SEED, help=f"[{BENCH_SEED}]")
     parser.add_argument("--still", type=int, default=4, help="still-hand sessions [4]")
     parser.add_argument("--jobs", type=int, default=2, help="processes simulating users [2]")
+    parser.add_argument("--streams-sim", type=int, default=6,
+                        help="continuous streams of simulated users (hand never leaves) [6]")
     parser.add_argument("--templates", type=Path, default=DEFAULT_PATH,
                         help="template library [the shipped models/default.json]")
     parser.add_argument("--latency", action=argparse.BooleanOptionalAction, default=True,
                         help="measure latency through real processes [on]")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    real = parser.add_argument_group(
+        "real people (SHREC'17 skeletons, `cbgo.services.dynamic_gesture.shrec`)")
+    real.add_argument("--real", type=Path, metavar="DIR", default=None,
+                      help="instead of the above: play real recordings from this datasetShrec "
+                           "folder through live services (realbench)")
+    real.add_argument("--split", choices=("train", "test"), default="train",
+                      help="which official split's people [train; test is reserved for "
+                           "acceptance checks]")
+    real.add_argument("--per-class", type=int, default=12,
+                      help="recordings per swipe, and of the other gestures [12]")
+    real.add_argument("--streams", type=int, default=3,
+                      help="continuous streams (one person each, hand never leaves) [3]")
+    real.add_argument("--realism", type=Path, metavar="DIR", default=None,
+                      help="instead: compare the simulated users' swipe habits with the real "
+                           "train split's in this datasetShrec folder")
 
 
 # ============================================================================ accuracy
@@ -231,7 +259,18 @@ def _print_block(title: str, block: dict, names: list[str]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Runs the three parts and prints their figures."""
+    """Runs the three parts and prints their figures (or the real-data bench)."""
+    if args.real is not None:
+        return realbench.run_real(args.real, args.split, args.per_class, args.streams,
+                                  args.seed, args.json)
+    if args.realism is not None:
+        config = SegmenterConfig()
+        real = realbench.real_habits(args.realism, "train", config)
+        simulated = realbench.simulated_habits(args.users, args.seed, config)
+        table = realbench.print_realism(real, simulated)
+        if args.json:
+            args.json.write_text(json.dumps(table, indent=1))
+        return 0
     library = Library(args.templates, None).load()
     classifier = library.classifier()
     t0 = time.perf_counter()
@@ -249,6 +288,8 @@ def run(args: argparse.Namespace) -> int:
           f"; still hands: {acc['still_windows']} windows, {acc['still_false_strokes']} "
           "final ones won by a gesture")
     _print_block("mid-stroke windows", acc["mid_stroke"], classifier.names)
+    figures["streams"] = realbench.run_streams(classifier, args.streams_sim, args.seed + 20_000,
+                                               SegmenterConfig(), simdata.RANGES[args.ranges])
     finals = [lw.window for u in users for lw in u.windows if lw.window.final]
     figures["cost"] = cost(classifier, finals)
     c = figures["cost"]

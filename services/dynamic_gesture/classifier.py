@@ -16,12 +16,18 @@ left to the "no gesture" alternative, where it separates a twitch from a stroke.
 Probabilities come from a **conditional logit** (McFadden) whose few weights θ are shared by all
 templates, so a template added later needs no retraining of the calibration:
 
-- template k's utility ``u_k = θ₁·log(d_k / s_k) + θ₂·ℓ_k + θ₃·|c − c_k|``: ``d_k`` the
-  per-step DTW distance of the window's shape to the template's, ``s_k`` its scale, ``ℓ_k``
-  the ProMP log-likelihood per value (clipped at `LOGLIK_FLOOR`), ``c`` the window's change of
-  hand shape and ``c_k`` the template's (forming or releasing a static pose rolls the palm too);
-- "no gesture" has ``u_none = θ₄ + θ₅·log(extent) + θ₆·[stroke still running]``: the extent is
-  the window's largest excursion from its start (mm, roll included as k·roll);
+- template k's utility ``u_k = θ₁·log(d_k / s_k) + θ₂·ℓ_k + θ₃·|c − c_k| + θ₉·(1 − cos
+  φ_k)``: ``d_k`` the per-step DTW distance of the window's shape to the template's, ``s_k``
+  its scale, ``ℓ_k`` the ProMP's robust log-likelihood per value (clipped at
+  `LOGLIK_FLOOR`), ``c`` the window's change of hand shape and ``c_k`` the template's (forming
+  or releasing a static pose rolls the palm too), ``φ_k`` the angle between the window's
+  heading (start → farthest sample, roll included) and the template's: a swipe right of a
+  real, jittery hand still heads right;
+- "no gesture" has ``u_none = θ₄ + θ₅·log(extent) + θ₆·[stroke still running] +
+  θ₇·log(peak speed)``: the extent is the window's largest excursion from its start (mm, roll
+  included as k·roll), the peak speed the stroke's highest (mm/s, likewise): a drift, a slow
+  re-positioning or a preparation is slower than a gesture; and ``θ₈·log(path / extent)``: a
+  gesture goes where it goes, a wobble or a shake wanders;
 - ``p = softmax(u)``: a probability vector over the templates plus ``none`` that sums to 1.
 
 θ is fitted by penalised maximum likelihood (`fit_calibration`) on every window the segmenter
@@ -53,7 +59,8 @@ SCALE_FLOOR = 0.02  # per-step shape distance, in units of the stroke's extent
 LOO_MAX = 30
 LOGLIK_FLOOR = -60.0
 EXTENT_FLOOR_MM = 1.0
-N_THETA = 6
+N_THETA = 9
+SPEED_FLOOR_MM_S = 10.0
 DTW_MODES = ("exact", "numpy", "fastdtw")
 
 
@@ -164,6 +171,11 @@ def extent_of(obs: np.ndarray) -> float:
     return max(EXTENT_FLOOR_MM, float(np.linalg.norm(obs - obs[0], axis=1).max()))
 
 
+def path_of(obs: np.ndarray) -> float:
+    """Returns the length of a window's path (mm, roll as k·roll), at least its extent."""
+    return max(extent_of(obs), float(np.linalg.norm(np.diff(obs, axis=0), axis=1).sum()))
+
+
 def normalised(obs: np.ndarray) -> np.ndarray:
     """Returns a trajectory relative to its start and scaled to unit extent (its shape)."""
     return (obs - obs[0]) / extent_of(obs)
@@ -179,7 +191,8 @@ class Calibration:
         """Returns plain data (JSON-safe)."""
         return {"kind": "conditional-logit", "theta": [float(v) for v in self.theta],
                 "features": ["log(d/s)", "loglik", "|pose change - template's|", "none:bias",
-                             "none:log(extent)", "none:in-progress"]}
+                             "none:log(extent)", "none:in-progress", "none:log(peak speed)",
+                             "none:log(path / extent)", "1 - cos(reach, template's)"]}
 
     @classmethod
     def from_dict(cls, data: dict) -> Calibration:
@@ -194,17 +207,29 @@ class Calibration:
         return cls(theta)
 
 
+def reach_of(obs: np.ndarray) -> np.ndarray:
+    """Returns the unit vector from a window's start to its farthest sample (its heading)."""
+    delta = obs - obs[0]
+    far = delta[int(np.argmax(np.linalg.norm(delta, axis=1)))]
+    return far / max(float(np.linalg.norm(far)), 1e-9)
+
+
 def features(obs: np.ndarray, distances: np.ndarray, scales: np.ndarray, logliks: np.ndarray,
-             pose_gaps: np.ndarray, final: bool = True) -> np.ndarray:
+             pose_gaps: np.ndarray, final: bool = True, peak_speed: float = 0.0,
+             reaches: np.ndarray | None = None) -> np.ndarray:
     """Returns (K + 1, N_THETA) feature rows: one per template, then the none row."""
     k = len(distances)
     out = np.zeros((k + 1, N_THETA))
     out[:k, 0] = np.log(np.maximum(distances, 1e-6) / scales)
     out[:k, 1] = np.maximum(logliks, LOGLIK_FLOOR)
     out[:k, 2] = pose_gaps
+    if reaches is not None:
+        out[:k, 8] = 1.0 - reaches @ reach_of(obs)
     out[k, 3] = 1.0
     out[k, 4] = np.log(extent_of(obs))
     out[k, 5] = 0.0 if final else 1.0
+    out[k, 6] = np.log(max(peak_speed, SPEED_FLOOR_MM_S))
+    out[k, 7] = np.log(path_of(obs) / extent_of(obs))
     return out
 
 
@@ -290,6 +315,7 @@ class Classifier:
         self.scales = np.array([t.scale for t in templates])
         self.extents = np.array([t.extent_mm for t in templates])
         self.pose_changes = np.array([t.pose_change for t in templates])
+        self.reaches = np.array([reach_of(t.trajectory) for t in templates])
 
     @property
     def implementation(self) -> str:
@@ -313,24 +339,30 @@ class Classifier:
         return np.array([t.promp.log_likelihood(obs * (extent / size))
                          for t, extent in zip(self.templates, self.extents, strict=True)])
 
-    def features(self, obs: np.ndarray, final: bool = True, pose_change: float = 0.0
-                 ) -> np.ndarray:
+    def features(self, obs: np.ndarray, final: bool = True, pose_change: float = 0.0,
+                 peak_speed: float = 0.0) -> np.ndarray:
         """Returns the window's (K + 1, N_THETA) feature rows (see `probabilities`)."""
         obs = obs - obs[0]
         return features(obs, self.distances(obs), self.scales, self.log_likelihoods(obs),
-                        np.abs(pose_change - self.pose_changes), final)
+                        np.abs(pose_change - self.pose_changes), final, peak_speed, self.reaches)
 
-    def probabilities(self, obs: np.ndarray, final: bool = True, pose_change: float = 0.0
-                      ) -> np.ndarray:
+    def probabilities(self, obs: np.ndarray, final: bool = True, pose_change: float = 0.0,
+                      peak_speed: float = 0.0) -> np.ndarray:
         """Returns (K + 1,) probabilities over `names` (templates, then none); they sum to 1.
 
         Args:
             obs: the window's observation (n, 4).
             final: whether the window ends its stroke (else it is one evaluated mid-stroke).
             pose_change: the window's change of hand shape (`stroke.Window.pose_change`).
+            peak_speed: the stroke's highest speed (`stroke.Window.peak_speed`), mm/s.
         """
-        return softmax_rows(self.features(obs, final, pose_change), self.calibration.theta)
+        return softmax_rows(self.features(obs, final, pose_change, peak_speed),
+                            self.calibration.theta)
+
+    def window_features(self, window) -> np.ndarray:
+        """Returns the feature rows of a `stroke.Window`."""
+        return self.features(window.obs, window.final, window.pose_change, window.peak_speed)
 
     def classify(self, window) -> np.ndarray:
         """Returns the probabilities of a `stroke.Window`."""
-        return self.probabilities(window.obs, window.final, window.pose_change)
+        return softmax_rows(self.window_features(window), self.calibration.theta)

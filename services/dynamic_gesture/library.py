@@ -1,9 +1,11 @@
 """Template files: the shipped default library and the gestures users teach, as JSON (no pickles).
 
-- The default library is ``models/default.json`` in this package, written by `cbgo train
-  dynamic`: the templates of ``swipe_up, swipe_down, swipe_left, swipe_right, rotate``, the
-  calibration weights shared by all templates, the observation settings they were learned with,
-  and a summary of the training run.
+- The default library is ``models/default.json`` in this package (``cbgo train dynamic
+  --out`` writes it; plain ``cbgo train dynamic`` writes
+  ``<data_dir>/models/dynamic-gesture.json``, which then stands in for it): the templates of
+  ``swipe_up, swipe_down, swipe_left, swipe_right, rotate``, the calibration weights shared
+  by all templates, the observation settings they were learned with, and a summary of the
+  training run.
 - A user's gesture is one file ``<data_dir>/gestures/dynamic/<NAME>.json`` (`cbgo.config.data_dir`,
   ``CBGO_DATA_DIR``), written by ``cbgo gestures record NAME --dynamic``. It holds one template.
   A user template with the name of a default one replaces it (a personal version).
@@ -42,6 +44,21 @@ def check_name(name: str) -> str:
         raise ConfigError(f"gesture name {name!r} is not valid: use letters, digits, '_', '.', "
                           f"'-' (up to 64, not {NONE!r}), e.g. 'swipe_diag'")
     return name
+
+
+def trained_path(data_dir: Path) -> Path:
+    """Returns where `cbgo train dynamic` writes: ``<data_dir>/models/dynamic-gesture.json``.
+
+    The service uses it in place of the shipped one when it exists (never the package itself:
+    an installed package may be read-only).
+    """
+    return Path(data_dir) / "models" / "dynamic-gesture.json"
+
+
+def default_path(data_dir: Path) -> Path:
+    """Returns the default library in use: the user's trained one if present, else the shipped."""
+    trained = trained_path(data_dir)
+    return trained if trained.is_file() else DEFAULT_PATH
 
 
 def user_dir(data_dir: Path) -> Path:

@@ -2,8 +2,8 @@
 
 Behaviour (the contract is services/dynamic_gesture/README.md):
 - every ``cbgo/hands/frame`` goes through the `stroke.Segmenter` (per hand id, on the frames'
-  own ``ts`` clock): a stroke starts from rest in the centre of the sensor field and ends when
-  the hand slows down; preparation and retraction moves are no strokes;
+  own ``ts`` clock): a stroke starts anywhere, from rest or slow motion, and ends when the hand
+  slows down or turns back; the return move after a gesture is dropped (`stroke.ReturnFilter`);
 - each evaluated window (every ``eval_period_s`` while a stroke runs, and at its end) is
   classified against the whole template library (`classifier.Classifier`) and published on
   ``cbgo/gestures/dynamic``: ``names`` are the templates plus ``none``, ``probs`` sum to 1,
@@ -29,8 +29,14 @@ from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.runtime import Service, main_for
 from cbgo.services.dynamic_gesture.classifier import DTW_MODES
-from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, read_default, user_dir
-from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig, Window
+from cbgo.services.dynamic_gesture.library import Library, default_path, read_default, user_dir
+from cbgo.services.dynamic_gesture.stroke import (
+    ReturnFilter,
+    Segmenter,
+    SegmenterConfig,
+    Window,
+    reported,
+)
 
 MODEL = "promp-dtw-1"
 
@@ -40,7 +46,8 @@ class DynamicGestureSettings(SegmenterConfig):
     """Settings of dynamic-gesture: the segmenter's (see `stroke.SegmenterConfig`) and these."""
 
     templates: str | None = field(default=None, metadata=_help(
-        "the default template library (JSON) [default: the shipped models/default.json]"))
+        "the default template library (JSON) [default: <data dir>/models/dynamic-gesture.json "
+        "if `cbgo train dynamic` wrote one, else the shipped models/default.json]"))
     user_dir: str | None = field(default=None, metadata=_help(
         "folder of user-taught gestures [default: <data dir>/gestures/dynamic, data dir from "
         "CBGO_DATA_DIR or ~/.local/share/cbgo]"))
@@ -74,7 +81,8 @@ class DynamicGesture(Service):
     def __init__(self, settings: DynamicGestureSettings):
         super().__init__(settings)
         self.segmenter = Segmenter(settings.segmenter())
-        self.library = Library(Path(settings.templates or DEFAULT_PATH),
+        self.returns = ReturnFilter(settings.return_s)
+        self.library = Library(Path(settings.templates or default_path(data_dir())),
                                Path(settings.user_dir) if settings.user_dir
                                else user_dir(data_dir()))
         self.classifier = None
@@ -114,15 +122,23 @@ class DynamicGesture(Service):
             f"{t.name} ({t.source})" for t in self.library.templates))
 
     def on_frame(self, msg: dict) -> list:
-        """Feeds one hand frame to the segmenter; returns a message per window to evaluate."""
-        return [(keys.GESTURES_DYNAMIC, self.message(w))
-                for w in self.segmenter.update(msg["ts"], msg["hands"])]
+        """Feeds one hand frame to the segmenter; returns a message per window to report.
 
-    def message(self, window: Window) -> dict:
-        """Classifies one window and returns its ``cbgo/gestures/dynamic`` message."""
+        Windows of a return move (`stroke.ReturnFilter`) are not reported.
+        """
+        windows = self.segmenter.update(msg["ts"], msg["hands"])
+        return [(keys.GESTURES_DYNAMIC, self.message(window, probs))
+                for window, probs in reported(windows, self.returns, self.classify)]
+
+    def classify(self, window: Window) -> np.ndarray:
+        """Returns the probabilities of one window, timing the classification."""
         t0 = time.perf_counter()
         probs = self.classifier.classify(window)
         self.classify_ms.append((time.perf_counter() - t0) * 1e3)
+        return probs
+
+    def message(self, window: Window, probs: np.ndarray) -> dict:
+        """Returns the ``cbgo/gestures/dynamic`` message of a classified window."""
         self.windows += 1
         msg = {"v": wire.SCHEMA_VERSION, "ts": time.time(), "seq": self.seq,
                "hand_id": window.hand_id, "side": window.side,
@@ -161,6 +177,7 @@ class DynamicGesture(Service):
         return {"gestures": [{"name": t.name, "source": t.source, "demos": t.n_demos}
                              for t in self.library.templates],
                 "skipped": self.library.skipped, "strokes": self.segmenter.strokes,
+                "returns": self.returns.returns,
                 "windows": self.windows, "reloads": self.reloads,
                 "dtw": self.classifier.implementation,
                 "classify_ms": {"p50": float(np.median(ms)),

@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 EVAL_POINTS = 16
+ROBUST_NU = 4.0  # degrees of freedom of the robust residual cost
 
 
 def basis(phases: np.ndarray, n_basis: int) -> np.ndarray:
@@ -110,10 +111,17 @@ class ProMP:
         return phi @ self.mean_w.reshape(self.dims, self.n_basis).T
 
     def log_likelihood(self, obs: np.ndarray) -> float:
-        """Returns the predictive log-density of an observation (n, D), per value."""
+        """Returns the predictive log-density of an observation (n, D), per value.
+
+        Robust: each whitened residual costs ``ν·log(1 + z²/ν)`` (a Student-t with ν =
+        `ROBUST_NU`) instead of ``z²``, the same for small residuals but only logarithmic for
+        large ones, so a tracking glitch (a hand that flips for a few frames) lowers it a
+        little rather than ruling the whole stroke out.
+        """
         y = resample(obs, EVAL_POINTS).T.reshape(-1)  # dimension-major, like the weights
         z = self._whiten @ (y - self._mu)
-        return -0.5 * (float(z @ z) + self._norm) / len(y)
+        cost = float(np.sum(ROBUST_NU * np.log1p(z * z / ROBUST_NU)))
+        return -0.5 * (cost + self._norm) / len(y)
 
     def to_dict(self) -> dict:
         """Returns plain data (JSON-safe)."""

@@ -21,8 +21,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cbgo.services.dynamic_gesture.stroke import DT, Segmenter, SegmenterConfig, Window
-from cbgo.simuser.scenario import Episode, GestureStep, Scenario, UserStyle
+from cbgo.services.dynamic_gesture.stroke import (
+    DT,
+    ReturnFilter,
+    Segmenter,
+    SegmenterConfig,
+    Window,
+)
+from cbgo.simuser.scenario import IDLE_MOTIONS, Episode, GestureStep, Scenario, UserStyle
 from cbgo.simuser.user import SimulatedUser
 from cbgo.wire import DYNAMIC_GESTURES, STATIC_GESTURES
 
@@ -40,6 +46,11 @@ class StyleRanges:
     hand_scale: tuple[Interval, ...]
     angle_deg: tuple[Interval, ...]
     left_share: float = 0.3
+    # Stroke habits (`UserStyle`), spread around what the real train split's people do.
+    stroke_lead: tuple[Interval, ...] = ((0.2, 0.8),)
+    rest_s: tuple[Interval, ...] = ((0.0, 0.3),)
+    swipe_roll_deg: tuple[Interval, ...] = ((15.0, 60.0),)
+    return_slowdown: tuple[Interval, ...] = ((0.8, 2.0),)
 
     def draw(self, rng: np.random.Generator, name: str) -> tuple[UserStyle, tuple[float, float]]:
         """Returns a user style and the (low, high) roll angles of its rotate strokes."""
@@ -50,16 +61,19 @@ class StyleRanges:
         style = UserStyle(hand_scale=pick(self.hand_scale),
                           side="left" if rng.random() < self.left_share else "right",
                           speed=pick(self.speed), amplitude=pick(self.amplitude),
-                          curvature=pick(self.curvature), tremor_mm=pick(self.tremor_mm))
+                          curvature=pick(self.curvature), tremor_mm=pick(self.tremor_mm),
+                          stroke_lead=pick(self.stroke_lead), rest_s=pick(self.rest_s),
+                          swipe_roll_deg=pick(self.swipe_roll_deg),
+                          return_slowdown=pick(self.return_slowdown))
         angle = pick(self.angle_deg)
         return style, (angle * 0.93, angle * 1.07)
 
 
-TRAIN = StyleRanges(speed=((0.75, 1.35),), amplitude=((0.8, 1.25),), curvature=((0.0, 0.12),),
+TRAIN = StyleRanges(speed=((0.6, 1.5),), amplitude=((0.55, 1.8),), curvature=((0.0, 0.3),),
                     tremor_mm=((0.3, 1.2),), hand_scale=((0.85, 1.15),),
                     angle_deg=((75.0, 105.0),))
-HELD_OUT = StyleRanges(speed=((0.55, 0.75), (1.35, 1.7)), amplitude=((0.6, 0.8), (1.25, 1.5)),
-                       curvature=((0.12, 0.2),), tremor_mm=((1.2, 2.0),),
+HELD_OUT = StyleRanges(speed=((0.45, 0.6), (1.5, 1.8)), amplitude=((0.45, 0.55), (1.8, 1.95)),
+                       curvature=((0.3, 0.4),), tremor_mm=((1.2, 2.0),),
                        hand_scale=((0.75, 0.85), (1.15, 1.25)),
                        angle_deg=((60.0, 75.0), (105.0, 120.0)))
 RANGES = {"train": TRAIN, "held-out": HELD_OUT}
@@ -85,10 +99,11 @@ class UserData:
 
 
 def user_scenario(seed: int, ranges: StyleRanges, reps: int, statics: bool = True,
-                  gestures: tuple[str, ...] = DYNAMIC_GESTURES) -> Scenario:
+                  gestures: tuple[str, ...] = DYNAMIC_GESTURES, idle: bool = True) -> Scenario:
     """Returns one user's session: `reps` episodes, each every gesture once, shuffled.
 
-    With `statics`, each episode also holds one or two static poses between the strokes.
+    With `statics`, each episode also holds one or two static poses between the strokes; with
+    `idle`, one or two idle motions (drift, wobble, slow re-positioning, a slow palm turn).
     """
     rng = np.random.default_rng(seed)
     name = f"user{seed}"
@@ -100,8 +115,26 @@ def user_scenario(seed: int, ranges: StyleRanges, reps: int, statics: bool = Tru
         if statics:
             for pose in rng.choice(STATIC_GESTURES, size=int(rng.integers(1, 3)), replace=False):
                 steps.insert(int(rng.integers(len(steps) + 1)), GestureStep(str(pose)))
+        if idle:
+            for motion in rng.choice(IDLE_MOTIONS, size=int(rng.integers(1, 3)), replace=False):
+                steps.insert(int(rng.integers(len(steps) + 1)), GestureStep(str(motion)))
         episodes.append(Episode(gestures=steps, pause_s=0.3))
     return Scenario(episodes=episodes, users={name: style}, name=name, seed=seed)
+
+
+def without_returns(windows: list[Labelled], within_s: float) -> list[Labelled]:
+    """Returns the windows the service reports: those of return moves dropped.
+
+    The service's `stroke.ReturnFilter` judges "the gesture just made" by its classification;
+    here the truth stands in for it.
+    """
+    returns = ReturnFilter(within_s)
+    kept = []
+    for lw in windows:
+        if not returns.is_return(lw.window):
+            returns.observe(lw.window, 1.0 if lw.truth != "none" else 0.0)
+            kept.append(lw)
+    return kept
 
 
 def truth_of(window: Window, times: np.ndarray, labels: list[str | None]) -> str:
@@ -144,7 +177,8 @@ def run_user(seed: int, ranges: StyleRanges, reps: int, rate_hz: float = 60.0,
     windows = [w for f in frames for w in segmenter.update(f.t, f.hands)]
     style = vars(next(iter(scenario.users.values())))
     data = UserData(scenario.name, dict(style))
-    data.windows = [Labelled(w, truth_of(w, times, labels)) for w in windows]
+    data.windows = without_returns([Labelled(w, truth_of(w, times, labels)) for w in windows],
+                                   segmenter.config.return_s)
     data.strokes = true_strokes(times, labels)
     finals = [lw for lw in data.windows if lw.window.final]
     for gesture, t0, t1 in data.strokes:

@@ -5,32 +5,41 @@ Observation (what a dynamic gesture is compared on):
 - each hand's palm centre (mm, Leap frame) and palm **roll** are resampled to 20 Hz, as the
   paper does, by averaging the frames that fall in each 50 ms bin (this also averages out most of
   the 8–12 Hz physiological tremor); a bin without frames repeats the last sample;
-- the roll is the angle of ``palm_normal`` about ``direction``, measured from the "palm down"
-  reference (−y projected onto the plane across ``direction``), unwrapped, and negated for a
-  left hand so that it is anatomical (the same rotation of either hand gives the same sign);
+- the roll is the twist of ``palm_normal`` about ``direction`` summed frame by frame
+  (`roll_increment`; the first frame's absolute `palm_roll` is the start), unwrapped, and
+  negated for a left hand so that it is anatomical (the same rotation of either hand gives the
+  same sign): measured whichever way the fingers point;
 - a stroke's observation is ``[x, y, z, k·roll]`` per sample, translation-normalised to the
-  stroke's first sample (``k`` = ``roll_scale_mm_per_rad``: a 90° roll weighs like a 157 mm
-  swipe), so that rotate — a roll that barely moves the palm — is as visible as a swipe.
+  stroke's first sample (``k`` = ``roll_scale_mm_per_rad``: a 90° roll weighs like a 79 mm
+  swipe), so that rotate — a roll that barely moves the palm — is visible, while the 50–100°
+  that real palms roll during a swipe leave it a swipe.
 
-Segmentation, per hand id (the paper's stroke: it starts in the centre of the sensor's field):
+Segmentation, per hand id (the paper's strokes, found where real people make them):
 
 - speed is the palm displacement over the last two samples (100 ms), roll rate likewise;
-- a hand is **armed** once it has rested (slow: below both start thresholds) inside the centre
-  region (a sphere of ``centre_radius_mm`` around ``centre_mm``) for ``rest_s``;
+- a hand is **armed** once it has been slow (below both start thresholds: resting, or moving
+  slowly) for ``rest_s``, anywhere in the field. With ``centre_rule`` (the paper's rule, an
+  option) it must rest inside the centre region (a sphere of ``centre_radius_mm`` around
+  ``centre_mm``), and a hand that reaches the centre while moving is not armed;
 - an armed hand whose speed or roll rate rises above the start thresholds starts a stroke; its
-  first sample is back-dated to the last sample at rest, so the observation holds the whole
-  motion. A hand that reaches the centre while moving (entering the field, returning from a
-  swipe) is not armed, so preparation and retraction moves are never strokes;
-- the stroke ends when speed and roll rate stay below the end thresholds for ``end_hold_s``
-  (the hand slowed down); the observation ends at the first slow sample. A stroke longer than
-  ``max_stroke_s`` ends there;
+  first sample is back-dated to the last sample at rest in the slow motion just before (at
+  most `ONSET_S`, never into the previous stroke), so the observation holds the whole motion;
+- the stroke ends when speed and roll rate stay below the end thresholds (or ``end_fraction``
+  of the stroke's peak, if more: a tracker's jitter never reaches the absolute ones) for
+  ``end_hold_s`` (the hand slowed down); the observation ends at the first slow sample. It
+  also ends where the hand turns back (its excursion from the start drops ``turn_back_mm``, or
+  a quarter of the farthest, below the farthest): the stroke stops at its farthest sample and
+  the move back is a new stroke from there. A stroke longer than ``max_stroke_s`` ends there;
 - while it runs, a window is evaluated every ``eval_period_s`` once it has ``min_samples``
   samples, and once more at its end (``final``);
 - a hand that disappears (or is not seen for ``max_gap_s``) ends its stroke with what was seen
   (a long swipe may leave the sensor's field); the move that takes a resting hand out of the
   field is cut the same way and is classified, normally as "no gesture";
-- after a stroke the hand must rest in the centre again before the next one; the rest time
-  counts from the end of the stroke's slow hold, so strokes can follow each other closely.
+- after a stroke the hand must be slow again (for ``rest_s``, counted from the end of the
+  stroke's slow hold) before the next one, except after a turn back;
+- a window that has not moved ``min_extent_mm`` from its start is a twitch, not evaluated;
+- whether a stroke is reported is the service's call: `ReturnFilter` drops the return move
+  after a gesture.
 """
 
 from __future__ import annotations
@@ -43,6 +52,9 @@ import numpy as np
 
 from cbgo.errors import ConfigError
 
+REVERSE_MIN_MM = 20.0  # both moves must go this far in space for a spatial reversal to count
+ONSET_S = 0.3  # how far back a stroke's start may be placed into the slow motion before it
+GESTURE_P = 0.5  # a reported window whose top gesture is this probable is a gesture
 RATE_HZ = 20.0  # the paper's resampling rate of the palm trajectory
 DT = 1.0 / RATE_HZ
 DEFAULT_CENTRE_MM = (0.0, 230.0, 0.0)  # the field centre; cbgo.simuser.motion.CENTRE_MM agrees
@@ -89,34 +101,51 @@ class SegmenterConfig:
         "roll rate below which the hand has slowed down, deg/s"))
     end_hold_s: float = field(default=0.1, metadata=_help(
         "how long the hand stays slow to end a stroke, s"))
+    end_fraction: float = field(default=0.25, metadata=_help(
+        "the hand has also slowed down below this fraction of the stroke's peak speed (and "
+        "roll rate): a tracker's jitter never reaches the absolute end thresholds"))
     rest_s: float = field(default=0.1, metadata=_help(
         "how long a hand rests in the centre before a stroke can start, s"))
     eval_period_s: float = field(default=0.1, metadata=_help(
         "period of the windows evaluated while a stroke runs, s"))
     min_samples: int = field(default=5, metadata=_help(
         "20 Hz samples a window needs before it is evaluated"))
+    min_extent_mm: float = field(default=40.0, metadata=_help(
+        "a window that has not moved this far from its start (mm, roll as k*roll) is a "
+        "twitch, and is not evaluated"))
     max_stroke_s: float = field(default=3.0, metadata=_help("longest stroke, s"))
     max_gap_s: float = field(default=0.3, metadata=_help(
         "a hand not seen for this long has disappeared, s"))
-    roll_scale_mm_per_rad: float = field(default=100.0, metadata=_help(
+    roll_scale_mm_per_rad: float = field(default=50.0, metadata=_help(
         "weight of the palm roll against the palm position in the observation, mm/rad"))
+    centre_rule: bool = field(default=False, metadata=_help(
+        "strokes start only from rest inside the centre region (the paper's rule); off: "
+        "from rest or slow motion anywhere in the field"))
+    turn_back_mm: float = field(default=30.0, metadata=_help(
+        "a stroke ends where the hand turns back by this much (or a quarter of its "
+        "excursion, if more) from its farthest point, mm (roll as k*roll)"))
+    return_s: float = field(default=1.5, metadata=_help(
+        "a stroke that reverses the gesture just made and starts within this time of its "
+        "end is its return move, and is not reported, s (0: report every stroke)"))
 
     def __post_init__(self):
         if len(self.centre_mm) != 3:
             raise ConfigError("centre_mm needs 3 numbers (mm, Leap frame), e.g. 0,230,0")
         positive = ("centre_radius_mm", "start_speed_mm_s", "start_roll_deg_s", "end_speed_mm_s",
                     "end_roll_deg_s", "eval_period_s", "max_stroke_s", "max_gap_s",
-                    "roll_scale_mm_per_rad")
+                    "roll_scale_mm_per_rad", "turn_back_mm")
         for name in positive:
             if not float(getattr(self, name)) > 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must be positive")
-        for name in ("end_hold_s", "rest_s"):
+        for name in ("end_hold_s", "rest_s", "return_s", "min_extent_mm"):
             if float(getattr(self, name)) < 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
         if self.end_speed_mm_s > self.start_speed_mm_s:
             raise ConfigError("end_speed_mm_s must not exceed start_speed_mm_s")
         if self.end_roll_deg_s > self.start_roll_deg_s:
             raise ConfigError("end_roll_deg_s must not exceed start_roll_deg_s")
+        if not 0 <= self.end_fraction < 1:
+            raise ConfigError(f"end_fraction={self.end_fraction} must be in [0, 1)")
         if self.min_samples < 3:
             raise ConfigError(f"min_samples={self.min_samples} must be at least 3")
         if self.max_stroke_s < self.min_samples * DT:
@@ -134,10 +163,15 @@ class Window:
         times: (n,) sample times, s (the frames' clock).
         obs: (n, 4) observation ``[x, y, z, k·roll]`` relative to the first sample.
         final: True for the window at the stroke's end.
-        pose_change: how much the hand's shape changed in the window: the largest
-            ``|Δgrab_strength| + |Δpinch_strength|`` from the first sample (0..2).
-        ended: why a final window's stroke ended: "slowed", "too long" or "lost" (the hand
-            disappeared); "" while the stroke runs.
+        pose_change: how much the hand's shape changed over the window:
+            ``|Δgrab_strength| + |Δpinch_strength|`` from its start to its end, each the median
+            of three samples (0..2).
+        ended: why a final window's stroke ended: "slowed", "turned" (the hand turned back),
+            "too long" or "lost" (the hand disappeared); "" while the stroke runs.
+        peak_speed: the 80th percentile of the stroke's speeds so far (a glitch does not
+            count), mm/s, the roll counted as k·roll (swipes are fast, drift and
+            re-positioning slow).
+        origin: the palm position of the first sample (mm, Leap frame).
     """
 
     hand_id: int
@@ -148,6 +182,8 @@ class Window:
     final: bool
     pose_change: float = 0.0
     ended: str = ""
+    peak_speed: float = 0.0
+    origin: np.ndarray | None = None
 
     @property
     def t_start(self) -> float:
@@ -177,6 +213,26 @@ def palm_roll(normal, direction, side: str = "right") -> float:
         ref = np.array([0.0, 0.0, 1.0]) - d[2] * d
     ref /= np.linalg.norm(ref)
     angle = math.atan2(float(np.cross(ref, n).dot(d)), float(ref.dot(n)))
+    return -angle if side == "left" else angle
+
+
+def roll_increment(prev_normal, normal, direction, side: str = "right") -> float:
+    """Returns how far (rad) the palm rolled about ``direction`` since ``prev_normal``.
+
+    The twist of the palm normal about the hand's current direction, anatomical sign (negated
+    for a left hand, as `palm_roll`). Summed frame by frame it gives the roll whatever way the
+    hand points: an absolute roll angle needs a reference across the direction, and that
+    reference swings wildly when the fingers point up or down (a hand held upright before a
+    camera, a Leap in front of the user).
+    """
+    d = np.asarray(direction, dtype=float)
+    d = d / (np.linalg.norm(d) or 1.0)
+    a = np.asarray(prev_normal, dtype=float)
+    a = a - a.dot(d) * d
+    if np.linalg.norm(a) < 1e-6:
+        return 0.0
+    n = np.asarray(normal, dtype=float)
+    angle = math.atan2(float(np.cross(a, n).dot(d)), float(a.dot(n)))
     return -angle if side == "left" else angle
 
 
@@ -225,9 +281,12 @@ class _Track:
         self.samples: deque[np.ndarray] = deque(maxlen=history)  # see SPEED, RATE
         self.last_t = t0
         self.last_roll: float | None = None
+        self.last_normal: np.ndarray | None = None
         self.rest = 0  # consecutive samples at rest inside the centre
         self.stroke: list[np.ndarray] | None = None
         self.slow = 0  # consecutive slow samples inside the stroke
+        self.far = 0  # index in the stroke of its farthest sample from the start
+        self.far_mm = 0.0  # and that excursion (mm, roll as k·roll)
         self.since_eval = 0
         self.stroke_id = 0
 
@@ -247,6 +306,7 @@ class Segmenter:
         self.end_samples = max(1, round(c.end_hold_s * RATE_HZ))
         self.eval_every = max(1, round(c.eval_period_s * RATE_HZ))
         self.max_samples = max(c.min_samples, round(c.max_stroke_s * RATE_HZ))
+        self.onset_samples = max(self.rest_samples, round(ONSET_S * RATE_HZ))
         self.tracks: dict[int, _Track] = {}
         self.strokes = 0
 
@@ -292,10 +352,13 @@ class Segmenter:
         return [window] if window is not None else []
 
     def _add_frame(self, track: _Track, t: float, hand: dict) -> list[Window]:
-        roll = palm_roll(hand["palm_normal"], hand["direction"], track.side)
-        if track.last_roll is not None:  # unwrap against the previous frame
-            roll = track.last_roll + (roll - track.last_roll + math.pi) % (2 * math.pi) - math.pi
-        track.last_roll, track.last_t = roll, t
+        normal = np.asarray(hand["palm_normal"], dtype=float)
+        if track.last_roll is None:
+            roll = palm_roll(normal, hand["direction"], track.side)
+        else:
+            roll = track.last_roll + roll_increment(track.last_normal, normal,
+                                                    hand["direction"], track.side)
+        track.last_roll, track.last_normal, track.last_t = roll, normal, t
         out = []
         for sample in track.resampler.add(t, hand["palm_position"], roll,
                                           hand["grab_strength"], hand["pinch_strength"]):
@@ -323,60 +386,221 @@ class Segmenter:
         moving = speed >= c.start_speed_mm_s or rate >= c.start_roll_deg_s
         if moving and track.rest >= self.rest_samples:
             return self._start(track)
-        in_centre = np.linalg.norm(sample[1:4] - self.centre) <= c.centre_radius_mm
-        track.rest = track.rest + 1 if (in_centre and not moving) else 0
+        track.rest = track.rest + 1 if (self._in_centre(sample) and not moving) else 0
         return None
 
+    def _in_centre(self, sample: np.ndarray) -> bool:
+        """Whether a sample may arm a stroke: anywhere, unless the centre rule is on."""
+        return (not self.config.centre_rule
+                or np.linalg.norm(sample[1:4] - self.centre) <= self.config.centre_radius_mm)
+
     def _start(self, track: _Track) -> Window | None:
-        c = self.config
         history = list(track.samples)
-        start = len(history) - 1
-        while start > 0 and (history[start][SPEED] >= c.end_speed_mm_s
-                             or history[start][RATE] >= c.end_roll_deg_s):
-            start -= 1  # back-date to the last sample at rest
-        if np.linalg.norm(history[start][1:4] - self.centre) > c.centre_radius_mm:
+        start = self._onset(history, track.rest)
+        if not self._in_centre(history[start]):
             track.rest = 0
             return None
-        track.stroke = history[start:]
+        return self._begin(track, history[start:])
+
+    def _onset(self, history: list[np.ndarray], slow_run: int) -> int:
+        """Returns the index in `history` where a stroke starting at its last sample began.
+
+        The last sample at rest (below the end thresholds) among the slow samples just before,
+        or the slowest of them if none is (a jittery tracker): never further back than that
+        slow run, whose start is where the previous motion ended.
+        """
+        c = self.config
+        last = len(history) - 1
+        run = range(max(0, last - min(slow_run, self.onset_samples)), last)
+        resting = [i for i in run if history[i][SPEED] < c.end_speed_mm_s
+                   and history[i][RATE] < c.end_roll_deg_s]
+        if resting:
+            return resting[-1]
+        if not run:
+            return last
+        return min(run, key=lambda i: (history[i][SPEED], history[i][RATE]))
+
+    def _begin(self, track: _Track, samples: list[np.ndarray]) -> Window | None:
+        track.stroke = list(samples)
         track.rest, track.slow, track.since_eval = 0, 0, 0
+        track.far, track.far_mm = 0, 0.0
+        for i in range(len(track.stroke)):
+            self._reach(track, i)
         self.strokes += 1
         track.stroke_id = self.strokes
         return self._maybe_partial(track)
 
+    def _reach(self, track: _Track, i: int) -> float:
+        """Updates the stroke's farthest sample with sample i; returns i's excursion."""
+        k = self.config.roll_scale_mm_per_rad
+        delta = track.stroke[i][1:5] - track.stroke[0][1:5]
+        excursion = float(np.linalg.norm(np.append(delta[:3], k * delta[3])))
+        if excursion > track.far_mm:
+            track.far, track.far_mm = i, excursion
+        return excursion
+
     def _continue(self, track: _Track, sample: np.ndarray) -> Window | None:
         c = self.config
         track.stroke.append(sample)
-        slow = sample[SPEED] < c.end_speed_mm_s and sample[RATE] < c.end_roll_deg_s
+        excursion = self._reach(track, len(track.stroke) - 1)
+        peak_speed, peak_rate = self._peaks(track.stroke)
+        slow = (sample[SPEED] < max(c.end_speed_mm_s, c.end_fraction * peak_speed)
+                and sample[RATE] < max(c.end_roll_deg_s, c.end_fraction * peak_rate))
         track.slow = track.slow + 1 if slow else 0
         if track.slow >= self.end_samples:
             return self._finish(track, len(track.stroke) - track.slow + 1, "slowed")
+        if track.far_mm - excursion > max(c.turn_back_mm, 0.25 * track.far_mm):
+            return self._turn(track)
         if len(track.stroke) >= self.max_samples:
             return self._finish(track, len(track.stroke), "too long")
         return self._maybe_partial(track)
+
+    @staticmethod
+    def _peaks(stroke: list[np.ndarray]) -> tuple[float, float]:
+        """Returns the stroke's second highest speed and roll rate (one glitch is no peak)."""
+        speeds = sorted(sample[SPEED] for sample in stroke[1:])
+        rates = sorted(sample[RATE] for sample in stroke[1:])
+        pick = -2 if len(speeds) > 1 else -1
+        return (speeds[pick], rates[pick]) if speeds else (0.0, 0.0)
+
+    def _turn(self, track: _Track) -> Window | None:
+        """Ends the stroke at its farthest point; the move back is a new stroke from there.
+
+        The hand turned back without stopping (a return, or a preparation followed by the
+        gesture): whether the new stroke is reported is `ReturnFilter`'s call.
+        """
+        far, samples = track.far, track.stroke
+        window = self._finish(track, far + 1, "turned")
+        self._begin(track, samples[far:])
+        return window
 
     def _maybe_partial(self, track: _Track) -> Window | None:
         track.since_eval += 1
         if len(track.stroke) < self.config.min_samples or track.since_eval < self.eval_every:
             return None
+        window = self._window(track, track.stroke, final=False)
+        if self._excursion(window) < self.config.min_extent_mm:
+            return None  # not yet more than a twitch: evaluate again at the next sample
         track.since_eval = 0
-        return self._window(track, track.stroke, final=False)
+        return window
 
     def _finish(self, track: _Track, end: int, reason: str) -> Window | None:
         samples = track.stroke[:max(end, 2)]
-        last = track.stroke[-1][1:4]
-        in_centre = np.linalg.norm(last - self.centre) <= self.config.centre_radius_mm
-        # The slow hold that ended the stroke already counts as rest if it is in the centre.
-        track.rest = track.slow if in_centre else 0
+        # The slow hold that ended the stroke already counts as rest (if in the centre).
+        track.rest = track.slow if self._in_centre(track.stroke[-1]) else 0
         track.stroke = None
         if len(samples) < self.config.min_samples:
             return None  # too short to be a gesture (a twitch)
-        return self._window(track, samples, final=True, reason=reason)
+        window = self._window(track, samples, final=True, reason=reason)
+        return window if self._excursion(window) >= self.config.min_extent_mm else None
+
+    @staticmethod
+    def _excursion(window: Window) -> float:
+        return float(np.linalg.norm(window.obs, axis=1).max())
 
     def _window(self, track: _Track, samples: list[np.ndarray], final: bool,
                 reason: str = "") -> Window:
         arr = np.asarray(samples)
         obs = observation(arr[:, 1:4], arr[:, 4], self.config.roll_scale_mm_per_rad)
         pose = arr[:, 5:7]
-        change = float(np.abs(pose - pose[0]).sum(1).max())
+        # Net change, start to end, each a median of three samples: fingers that relax or a
+        # tracker that flickers during a swipe are no pose being formed.
+        change = float(np.abs(np.median(pose[-3:], 0) - np.median(pose[:3], 0)).sum())
+        k_deg = self.config.roll_scale_mm_per_rad * math.pi / 180.0
+        speeds = np.hypot(arr[1:, SPEED], k_deg * arr[1:, RATE])
+        # Not the maximum: a tracking glitch (a skeleton that jumps for a frame or two) must
+        # not make a slow move fast.
+        peak = float(np.percentile(speeds, 80)) if len(speeds) else 0.0
         return Window(track.hand_id, track.side, track.stroke_id, arr[:, 0].copy(), obs, final,
-                      change, reason)
+                      change, reason, peak, arr[0, 1:4].copy())
+
+
+@dataclass
+class _Gesture:
+    t_end: float
+    delta: np.ndarray
+    peak_speed: float
+    p: float
+
+
+def _reverses(delta: np.ndarray, previous: np.ndarray, cos_max: float) -> bool:
+    """Whether displacement `delta` points back against `previous`.
+
+    With the roll included, or in space alone when both moved in space (a swipe's palm may
+    roll one way and not back).
+    """
+    def cos(a: np.ndarray, b: np.ndarray) -> float:
+        return float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9)
+
+    spatial = min(np.linalg.norm(delta[:3]), np.linalg.norm(previous[:3])) >= REVERSE_MIN_MM
+    return cos(delta, previous) < cos_max or (spatial and cos(delta[:3], previous[:3]) < cos_max)
+
+
+class ReturnFilter:
+    """Tells the return move after a gesture from a new stroke, per hand.
+
+    People prepare, stroke and come back; the paper's centre rule kept the preparation and the
+    return out by starting strokes only from the centre, which real people rarely rest in.
+    Here a stroke is a **return** when it reverses the gesture just reported by this hand
+    (its displacement points against the gesture's: cosine below ``cos_max``, roll included or
+    in space alone) and starts within ``within_s`` of that gesture's end. Its windows are not
+    reported. One exception, judged when the stroke has ended: when the gesture was not a sure
+    one (p below ``sure``) and the reversing stroke was much faster (more than ``faster``
+    times its peak speed), the "gesture" was a preparation and this stroke is the gesture (a
+    stroke cut short by the hand leaving is always a return: it has no speed to judge). A
+    stroke reversing a non-gesture (a preparation classified ``none``) is always reported.
+
+    Args:
+        within_s: how soon after a gesture's end a reversing stroke counts as its return
+            (0 turns the filter off).
+        cos_max: the cosine between the displacements below which a stroke reverses.
+        faster: how much faster than an unsure gesture its reversal must be to be reported.
+        sure: the probability from which a gesture's reversal is always its return.
+    """
+
+    def __init__(self, within_s: float, cos_max: float = -0.5, faster: float = 1.5,
+                 sure: float = 0.8):
+        self.within_s, self.cos_max, self.faster, self.sure = within_s, cos_max, faster, sure
+        self.last: dict[int, _Gesture] = {}
+        self.returns = 0
+
+    def is_return(self, window: Window) -> bool:
+        """Whether a window belongs to the return move of the hand's last gesture."""
+        last = self.last.get(window.hand_id)
+        if last is None or self.within_s <= 0 or window.t_start - last.t_end > self.within_s:
+            return False
+        delta = window.obs[-1] - window.obs[0]
+        if float(np.linalg.norm(delta)) < 1e-6 or not _reverses(delta, last.delta, self.cos_max):
+            return False
+        if not window.final:
+            return True
+        prepared = (last.p < self.sure and window.ended != "lost"
+                    and window.peak_speed > self.faster * last.peak_speed)
+        self.returns += int(not prepared)
+        return not prepared
+
+    def observe(self, window: Window, p_gesture: float) -> None:
+        """Records a reported final window and its top gesture's probability (if a gesture)."""
+        if not window.final:
+            return
+        delta = window.obs[-1] - window.obs[0]
+        if p_gesture > 0.0 and float(np.linalg.norm(delta)) > 1e-6:
+            self.last[window.hand_id] = _Gesture(window.t_end, delta, window.peak_speed,
+                                                 p_gesture)
+
+
+def reported(windows, returns: ReturnFilter, classify):
+    """Yields (window, probabilities) of the windows a service reports, as it decides.
+
+    A return (`ReturnFilter.is_return`) is skipped; every other window is classified
+    (`classify(window)` → probabilities, ``none`` last) and, when final, recorded as a gesture
+    if its most probable gesture has p ≥ `GESTURE_P` or is more probable than ``none`` (what
+    might have been a gesture is followed by what might be its return).
+    """
+    for window in windows:
+        if returns.is_return(window):
+            continue
+        probs = classify(window)
+        top = float(np.max(probs[:-1]))
+        returns.observe(window, top if top >= GESTURE_P or top > probs[-1] else 0.0)
+        yield window, probs

@@ -1,21 +1,30 @@
-"""Learn the default dynamic-gesture templates from simulated users and calibrate them.
+"""Learn the default dynamic-gesture templates from real and simulated people; calibrate them.
 
-1. Training users (styles drawn from `simdata.TRAIN`) perform every dynamic gesture ``--reps``
-   times, mixed with static poses; the frames go through the service's own segmenter, and each
-   end-of-stroke window whose frames are mostly one gesture is a demonstration of it.
-2. One ProMP template per gesture is learned from its demonstrations (`classifier.Template`).
-3. Calibration users — other people, same style range — are segmented the same way; the
-   shared weights of the conditional logit are fitted on every window the service would
-   evaluate for them (mid-stroke and final), gestures and non-gestures alike, so the
-   probabilities (``none`` included) are calibrated.
-4. The library is written to ``models/default.json`` (or ``--out``), with a summary of the
-   run; the calibration users' balanced accuracy and ECE on end-of-stroke windows are printed
-   (in-sample for the calibration; `cbgo bench dynamic` measures on held-out users).
+1. Training users (styles drawn from `simdata.TRAIN`, whose stroke habits are fitted to real
+   people) perform every dynamic gesture ``--reps`` times, mixed with static poses; the frames
+   go through the service's own segmenter, and each end-of-stroke window whose frames are
+   mostly one gesture is a demonstration of it.
+2. With ``--real DIR`` (the SHREC'17 skeletons, `shrec`), the people of its official **train
+   split** add their real swipes (each sequence's stroke that goes farthest in the swipe's
+   direction) and their other gestures (grab, tap, pinch, expand, shake) as "no gesture".
+   Returns are dropped as the service drops them; the other strokes of a swipe's recording
+   that move farther than a twitch are left out (a preparation or an unfiltered return is
+   swipe-shaped, and calling it "none" would teach that swipes are nothing). The test split's
+   people are never read.
+3. One ProMP template per gesture is learned from its demonstrations (`classifier.Template`).
+4. The shared weights of the conditional logit are fitted on every window the service would
+   evaluate (mid-stroke and final) of the calibration users — other simulated people — and of
+   the real people, gestures and non-gestures alike, so the probabilities (``none`` included)
+   are calibrated. With ``--folds N`` the real people are also split into N groups first, and
+   each group is scored by a library learned without it: the leave-people-out figures.
+5. The library goes to ``<data dir>/models/dynamic-gesture.json`` (which the service then uses
+   in place of the shipped one) or ``--out``, with a summary of the run.
 
 Examples::
 
-    cbgo train dynamic                          # the shipped default (a few minutes, 2 cores)
-    cbgo train dynamic --users 8 --calib-users 4 --out /tmp/dyn.json   # a quick try
+    cbgo train dynamic --real ~/.cache/cbgo/shrec17/datasetShrec --folds 4
+    cbgo train dynamic --real DIR --out services/dynamic_gesture/models/default.json  # ship it
+    cbgo train dynamic --users 8 --calib-users 4 --out /tmp/dyn.json   # simulated only, quick
 """
 
 from __future__ import annotations
@@ -27,7 +36,8 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import metrics
-from cbgo.services.dynamic_gesture import simdata
+from cbgo.config import data_dir
+from cbgo.services.dynamic_gesture import shrec, simdata
 from cbgo.services.dynamic_gesture.classifier import (
     NONE,
     Calibration,
@@ -36,8 +46,14 @@ from cbgo.services.dynamic_gesture.classifier import (
     fit_calibration,
     softmax_rows,
 )
-from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, save_default
-from cbgo.services.dynamic_gesture.stroke import RATE_HZ, SegmenterConfig
+from cbgo.services.dynamic_gesture.library import save_default, trained_path
+from cbgo.services.dynamic_gesture.stroke import (
+    GESTURE_P,
+    RATE_HZ,
+    ReturnFilter,
+    SegmenterConfig,
+    reported,
+)
 from cbgo.wire import DYNAMIC_GESTURES
 
 TRAIN_SEED = 1000
@@ -53,8 +69,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=TRAIN_SEED,
                         help=f"first training user's seed [{TRAIN_SEED}]")
     parser.add_argument("--jobs", type=int, default=2, help="processes simulating users [2]")
-    parser.add_argument("--out", type=Path, default=DEFAULT_PATH,
-                        help="where to write the library [the shipped models/default.json]")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="where to write the library [<data dir>/models/dynamic-gesture.json]")
+    parser.add_argument("--real", type=Path, metavar="DIR", default=None,
+                        help="the SHREC'17 datasetShrec folder: add its train split's people")
+    parser.add_argument("--folds", type=int, default=0,
+                        help="also score the real people leave-group-out in N groups [0: no]")
 
 
 def demonstrations(users: list[simdata.UserData]) -> dict[str, list]:
@@ -109,49 +129,119 @@ def evaluate(classifier: Classifier, feats: list[np.ndarray], labels: list[int])
             "confusion": metrics.confusion_matrix(y, pred, n), "samples": len(y)}
 
 
+def fit(sim_train: list, sim_calib: list, real_people: list) -> Classifier:
+    """Learns the templates and fits the calibration (see the module docstring)."""
+    classifier = Classifier(learn_templates(sim_train + real_people), Calibration())
+    classifier.calibration = fit_calibration(*labelled_features(classifier,
+                                                                sim_calib + real_people))
+    return classifier
+
+
+def trial_answer(classifier: Classifier, windows: list, return_s: float) -> str:
+    """Returns what the service reports for one recording: its most probable gesture.
+
+    "nothing" when no reported window has a gesture at p ≥ `stroke.GESTURE_P`.
+    """
+    best, best_p = "nothing", 0.0
+    for _, probs in reported(windows, ReturnFilter(return_s), classifier.classify):
+        top = int(np.argmax(probs[:-1]))
+        if probs[top] >= GESTURE_P and probs[top] > best_p:
+            best, best_p = classifier.names[top], float(probs[top])
+    return best
+
+
+def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: int,
+                   return_s: float, log=print) -> dict:
+    """Scores each group of real people with a library learned without them (trials)."""
+    people = sorted({seq.person for seq, _, _ in recordings})
+    names = [*shrec.SWIPE_DIRECTIONS, "rotate", "nothing"]
+    confusion = np.zeros((len(names), len(names)), dtype=int)
+    other, other_false = 0, 0
+    for k in range(folds):
+        held = set(people[k::folds])
+        train_people = shrec.people_data([r for r in recordings if r[0].person not in held],
+                                         return_s)
+        classifier = fit(sim_train, sim_calib, train_people)
+        for seq, windows, _ in recordings:
+            if seq.person not in held:
+                continue
+            answer = trial_answer(classifier, windows, return_s)
+            if seq.name in shrec.SWIPE_DIRECTIONS:
+                confusion[names.index(seq.name), names.index(answer)] += 1
+            else:
+                other, other_false = other + 1, other_false + (answer != "nothing")
+        log(f"  fold {k + 1}/{folds}: people {sorted(held)} scored")
+    recall = {n: float(confusion[i, i] / max(confusion[i].sum(), 1))
+              for i, n in enumerate(names[:4])}
+    return {"folds": folds, "people": people, "names": names, "confusion": confusion.tolist(),
+            "recall": recall, "balanced_accuracy": float(np.mean(list(recall.values()))),
+            "other_trials": other, "other_reported": other_false}
+
+
 def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
-          log=print) -> tuple[list[Template], Calibration, dict]:
+          real: Path | None = None, folds: int = 0, log=print
+          ) -> tuple[list[Template], Calibration, dict]:
     """Runs the whole training; returns templates, calibration and a summary."""
     t0 = time.perf_counter()
-    train_data = simdata.generate(list(range(seed, seed + users)), simdata.TRAIN, reps, jobs)
-    t1 = time.perf_counter()
-    templates = learn_templates(train_data)
-    counts = {name: len(w) for name, w in demonstrations(train_data).items()}
-    log(f"simulated {users} training users in {t1 - t0:.1f} s; demonstrations: {counts}")
+    return_s = SegmenterConfig().return_s
+    sim_train = simdata.generate(list(range(seed, seed + users)), simdata.TRAIN, reps, jobs)
     calib_seed = seed + CALIB_SEED
-    calib_data = simdata.generate(list(range(calib_seed, calib_seed + calib_users)),
-                                  simdata.TRAIN, reps, jobs)
-    t2 = time.perf_counter()
-    classifier = Classifier(templates, Calibration())
-    feats, labels = labelled_features(classifier, calib_data)
-    calibration = fit_calibration(feats, labels)
-    classifier.calibration = calibration
-    t3 = time.perf_counter()
-    log(f"simulated {calib_users} calibration users in {t2 - t1:.1f} s; fitted in "
-        f"{t3 - t2:.1f} s on {len(feats)} windows (mid-stroke and final)")
-    figures = evaluate(classifier, *labelled_features(classifier, calib_data, finals_only=True))
-    summary = {"users": users, "calib_users": calib_users, "reps": reps, "seed": seed,
-               "style_ranges": "train", "demonstrations": counts,
-               "calibration_set": {k: v for k, v in figures.items() if k != "confusion"},
-               "seconds": round(t3 - t0, 1)}
+    sim_calib = simdata.generate(list(range(calib_seed, calib_seed + calib_users)),
+                                 simdata.TRAIN, reps, jobs)
+    log(f"simulated {users} training and {calib_users} calibration users in "
+        f"{time.perf_counter() - t0:.1f} s")
+    recordings = []
+    if real is not None:
+        recordings = shrec.sequence_windows(shrec.read_split(real, "train"))
+        log(f"segmented {len(recordings)} real recordings of the SHREC'17 train split "
+            f"({len({r[0].person for r in recordings})} people)")
+    summary: dict = {"users": users, "calib_users": calib_users, "reps": reps, "seed": seed,
+                     "style_ranges": "train",
+                     "real": "shrec17 train split" if recordings else None}
+    if folds and recordings:
+        summary["leave_people_out"] = cross_validate(sim_train, sim_calib, recordings, folds,
+                                                     return_s, log)
+    real_people = shrec.people_data(recordings, return_s)
+    classifier = fit(sim_train, sim_calib, real_people)
+    summary["demonstrations"] = {name: len(w) for name, w in
+                                 demonstrations(sim_train + real_people).items()}
+    figures = evaluate(classifier, *labelled_features(classifier, sim_calib + real_people,
+                                                      finals_only=True))
+    summary["calibration_set"] = {k: v for k, v in figures.items() if k != "confusion"}
     summary["calibration_set"]["confusion"] = figures["confusion"].tolist()
-    return templates, calibration, summary
+    summary["seconds"] = round(time.perf_counter() - t0, 1)
+    return classifier.templates, classifier.calibration, summary
+
+
+def print_leave_people_out(block: dict) -> None:
+    """Prints the leave-people-out trial figures."""
+    print(f"\nreal people, leave-people-out ({block['folds']} groups of the SHREC'17 train "
+          f"split's {len(block['people'])} people), one recording = one trial:")
+    print(metrics.format_confusion(np.asarray(block["confusion"]), block["names"]))
+    print("recall " + ", ".join(f"{n} {r:.1%}" for n, r in block["recall"].items())
+          + f"; balanced accuracy {block['balanced_accuracy']:.1%}")
+    print(f"other gestures (grab, tap, expand, pinch, shake): {block['other_reported']} of "
+          f"{block['other_trials']} recordings reported a dynamic gesture")
 
 
 def run(args: argparse.Namespace) -> int:
     """Trains, prints the figures and writes the library."""
+    out = args.out or trained_path(data_dir())
     templates, calibration, summary = train(args.users, args.calib_users, args.reps, args.seed,
-                                            args.jobs)
+                                            args.jobs, args.real, args.folds)
     config = SegmenterConfig()
     observation = {"rate_hz": RATE_HZ, "dims": ["x", "y", "z", "k*roll"],
                    "roll_scale_mm_per_rad": config.roll_scale_mm_per_rad}
-    save_default(args.out, templates, calibration, observation, summary)
+    save_default(out, templates, calibration, observation, summary)
+    if "leave_people_out" in summary:
+        print_leave_people_out(summary["leave_people_out"])
     figures = summary["calibration_set"]
     names = [t.name for t in templates] + [NONE]
+    print("\nend-of-stroke windows of the calibration set (in-sample):")
     print(metrics.format_confusion(np.asarray(figures["confusion"]), names))
-    print(f"calibration users: balanced accuracy {figures['balanced_accuracy']:.2%}, "
+    print(f"balanced accuracy {figures['balanced_accuracy']:.2%}, "
           f"ECE {figures['ece']:.3f}, log-loss {figures['log_loss']:.3f}")
     print(f"theta {np.round(calibration.theta, 3).tolist()}; scales "
           f"{ {t.name: round(t.scale, 3) for t in templates} }")
-    print(f"wrote {args.out} in {summary['seconds']:.0f} s")
+    print(f"wrote {out} in {summary['seconds']:.0f} s")
     return 0

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from cbgo import wire
+from cbgo.hands.model import HandShape, build_hand, neutral_pose
 from cbgo.simuser.scenario import load_scenario
 from cbgo.testing import Stack
 
@@ -64,6 +65,53 @@ def test_a_hand_held_still_gives_no_gesture(running):
     time.sleep(0.3)
     time.sleep(play(stack, {"scenario": "still"}) + 1.0)
     assert [winner(m) for m in finals(out.items()) if winner(m) != "none"] == []
+
+
+def stroke_frames(segments, start, rate=60.0):
+    """Palm positions (mm) of a palm-down hand: ('hold', s) or ('move', s, dxyz), min jerk."""
+    pos, out = np.asarray(start, float), []
+    for seg in segments:
+        n = max(1, int(seg[1] * rate))
+        delta = np.asarray(seg[2], float) if seg[0] == "move" else np.zeros(3)
+        for i in range(1, n + 1):
+            s = i / n
+            out.append(pos + (s**3 * (10 - 15 * s + 6 * s**2)) * delta)
+        pos = pos + delta
+    return out
+
+
+@pytest.fixture(scope="module")
+def alone(tmp_path_factory):
+    """Router and dynamic-gesture only: the test is the one source of hand frames."""
+    tmp = tmp_path_factory.mktemp("dynamic-alone")
+    with Stack(tmp) as stack:
+        stack.start_router()
+        stack.start_service("dynamic-gesture", env={"CBGO_DATA_DIR": str(tmp / "data")})
+        stack.wait_alive(["router", "dynamic-gesture"], timeout=60)
+        yield stack
+
+
+def test_a_swipe_from_off_centre_is_heard_and_its_return_is_not(alone):
+    stack = alone
+    out = stack.collect("gestures/dynamic")
+    pub = stack.publisher("hands/frame")
+    shape = HandShape.default()
+    # Far from the centre, no rest: a swipe right, straight back a little more slowly, a
+    # pause, then a swipe up (its last window tells that everything before was handled).
+    palms = stroke_frames([("hold", 0.15), ("move", 0.45, (180, 0, 0)), ("move", 0.6, (-180, 0, 0)),
+                           ("hold", 0.6), ("move", 0.45, (0, 170, 0)), ("hold", 0.6)],
+                          start=(-140.0, 300.0, 60.0))
+    t0 = time.time()
+    for i, palm in enumerate(palms):
+        time.sleep(max(0.0, t0 + i / 60.0 - time.time()))
+        hand = build_hand(shape, neutral_pose(), palm, hand_id=7)
+        pub.put(wire.encode({"v": wire.SCHEMA_VERSION, "ts": time.time(), "seq": i,
+                         "source": "replay", "device": "test", "hands": [hand]}))
+    up = out.first(lambda m: m["hand_id"] == 7 and winner(m) == "swipe_up"
+                   and m["window"][1] - m["window"][0] > 0.3, timeout=20)
+    heard = [winner(m) for m in finals(out.items())
+             if m["hand_id"] == 7 and m["window"][0] < up["window"][0] and winner(m) != "none"]
+    assert heard == ["swipe_right"], heard
 
 
 def test_a_gesture_taught_with_cbgo_gestures_record_is_published_after_the_reload(running):

@@ -143,15 +143,20 @@ class TimelineBuilder:
                      None, "hidden", hidden=True)
 
     def move_to(self, target, seconds: float, phase: str, label: str | None = None,
-                bow: np.ndarray | None = None) -> None:
-        """Minimum-jerk move to target (mm), optionally bowed sideways by `bow` (mm)."""
+                bow: np.ndarray | None = None, roll_to: float | None = None) -> None:
+        """Minimum-jerk move to target (mm), optionally bowed sideways by `bow` (mm).
+
+        With `roll_to` (rad) the palm rolls to that angle on the way, on the same profile.
+        """
         n = self._frames(seconds)
         s = min_jerk(np.arange(1, n + 1) / n)[:, None]
         start, target = self.position.copy(), np.asarray(target, dtype=float)
         path = start + s * (target - start)
         if bow is not None:
             path += np.sin(np.pi * s) * np.asarray(bow, dtype=float)
-        self._append(path, np.full(n, self.roll_angle), label, phase)
+        end_roll = self.roll_angle if roll_to is None else roll_to
+        self._append(path, self.roll_angle + s[:, 0] * (end_roll - self.roll_angle), label,
+                     phase)
 
     def hold(self, seconds: float, phase: str, label: str | None = None) -> None:
         """Stays put (tremor is added later)."""

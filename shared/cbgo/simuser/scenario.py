@@ -19,6 +19,10 @@ A scenario is a list of episodes performed by named users::
         pause_s: 2.0             # no hand in view before the episode
         dropout_frames: 1        # drop the hand for N frames mid-episode (tracking loss)
 
+Besides gestures, a step may be an **idle motion** (`IDLE_MOTIONS`): what a hand does between
+gestures that is no gesture — ``drift`` (a slow wander), ``wobble`` (a small 2–4 Hz shake),
+``reposition`` (a slow move elsewhere in the field), ``turn`` (a slow palm roll and back).
+
 Rules: gesture names are the wire vocabulary (8 static, 5 dynamic); unknown keys are errors
 (a typo must not silently change a scenario); every error names the episode and the field.
 """
@@ -38,6 +42,8 @@ from cbgo.wire import DYNAMIC_GESTURES, STATIC_GESTURES
 BUNDLED = Path(__file__).parent / "scenarios"
 
 
+IDLE_MOTIONS = ("drift", "wobble", "reposition", "turn")
+
 @dataclass
 class UserStyle:
     """How one simulated person moves; every field has a typical default."""
@@ -51,6 +57,15 @@ class UserStyle:
     pose_variation: float = 1.0  # spread of static poses relative to the calibrated spread
     hold_s: float = 0.9         # how long a static gesture is held
     gaze_noise_m: float = 0.01  # eye-tracking noise (m, per axis)
+    # How real people stroke (fitted to the SHREC'17 train split's swipes; `cbgo bench dynamic
+    # --realism DIR` compares): a swipe starts about half its length before the middle of the
+    # field and crosses it, often without a rest, the palm rolling as it goes, and the hand
+    # comes back a little more slowly, often without stopping at the end.
+    stroke_lead: float = 0.55   # where a swipe starts: this fraction of it before the middle
+    stroke_spread_mm: float = 30.0  # where that middle is: SD around the field centre, mm
+    rest_s: float = 0.12        # longest rest before a stroke (drawn from 0..rest_s)
+    swipe_roll_deg: float = 45.0  # spread (SD) of the palm roll during a horizontal swipe
+    return_slowdown: float = 1.3  # the return takes this much longer than the stroke
 
     def __post_init__(self):
         if self.side not in ("left", "right"):
@@ -58,7 +73,8 @@ class UserStyle:
         for name in ("hand_scale", "speed", "amplitude", "hold_s"):
             if not 0.05 < float(getattr(self, name)) < 20:
                 raise ConfigError(f"{name}={getattr(self, name)} is out of range")
-        for name in ("curvature", "tremor_mm", "pose_variation", "gaze_noise_m"):
+        for name in ("curvature", "tremor_mm", "pose_variation", "gaze_noise_m", "stroke_lead",
+                     "stroke_spread_mm", "rest_s", "swipe_roll_deg", "return_slowdown"):
             if float(getattr(self, name)) < 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
 
@@ -76,6 +92,11 @@ class GestureStep:
     def dynamic(self) -> bool:
         """True for a stroke (swipe or rotate), False for a held pose."""
         return self.gesture in DYNAMIC_GESTURES
+
+    @property
+    def idle(self) -> bool:
+        """True for an idle motion (`IDLE_MOTIONS`): no gesture at all."""
+        return self.gesture in IDLE_MOTIONS
 
 
 @dataclass
@@ -121,9 +142,10 @@ def _build(cls, data: Any, where: str):
 
 def _step(item: Any, where: str) -> GestureStep:
     step = _build(GestureStep, {"gesture": item} if isinstance(item, str) else item, where)
-    if step.gesture not in STATIC_GESTURES + DYNAMIC_GESTURES:
+    if step.gesture not in STATIC_GESTURES + DYNAMIC_GESTURES + IDLE_MOTIONS:
         raise ConfigError(f"{where}: unknown gesture {step.gesture!r}; known: "
-                          f"{', '.join(STATIC_GESTURES + DYNAMIC_GESTURES)}")
+                          f"{', '.join(STATIC_GESTURES + DYNAMIC_GESTURES)} and the idle "
+                          f"motions {', '.join(IDLE_MOTIONS)}")
     return step
 
 

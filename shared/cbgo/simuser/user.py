@@ -2,9 +2,11 @@
 
 Each episode follows how people use a Leap Motion for gestures (the paper's episode and stroke
 notions): the hand is out of view, enters from the user's side, settles in the centre of the
-field (preparation), performs its gestures — static poses are formed, held and released; strokes
-(swipes, rotate) start from rest in the centre — returns to the centre after each stroke
-(retraction, slower and not starting in the centre), and leaves. Everything random — the user's
+field (preparation), performs its gestures — static poses are formed, held and released; a swipe
+starts before the middle of the field (`UserStyle.stroke_lead`), after a short rest or none,
+crosses the middle with the palm rolling as real palms do, and comes back a little more slowly,
+often without stopping; rotate rolls the palm in place — and leaves. The stroke habits are
+fitted to real people's swipes (`cbgo bench dynamic --realism DIR`). Everything random — the user's
 hand size, pose spread, stroke bow, tremor, gaze noise — derives from the scenario's seed and the
 user's name, so a scenario is reproducible frame by frame.
 """
@@ -35,6 +37,17 @@ SWIPE_DIRECTIONS = {
     "swipe_up": np.array([0.0, 1.0, 0.0]), "swipe_down": np.array([0.0, -0.85, 0.0]),
     "swipe_left": np.array([-1.0, 0.0, 0.0]), "swipe_right": np.array([1.0, 0.0, 0.0]),
 }
+
+
+STROKE_BOX = (np.array([-190.0, 100.0, -150.0]), np.array([190.0, 470.0, 150.0]))
+
+
+def _inside(start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """Returns `start` shifted so that a stroke from it to `end` stays well inside the field."""
+    low, high = STROKE_BOX
+    shift = np.maximum(low - np.minimum(start, end), 0) - np.maximum(np.maximum(start, end)
+                                                                       - high, 0)
+    return start + shift
 
 
 @dataclass
@@ -121,7 +134,9 @@ class SimulatedUser:
         bow_sign = 1.0 if rng.random() < 0.5 else -1.0
         dropout_at = None
         for step in episode.gestures:
-            if step.dynamic:
+            if step.idle:
+                self._idle(builder, step.gesture, style, rng)
+            elif step.dynamic:
                 self._stroke(builder, step, style, rng, bow_sign)
             else:
                 dropout_at = dropout_at or builder.frames + int(0.4 * self.rate_hz)
@@ -143,12 +158,42 @@ class SimulatedUser:
         builder.hold(0.25 / style.speed, "return")
         builder.key_pose(neutral_pose())
 
+    def _idle(self, builder: TimelineBuilder, kind: str, style: UserStyle,
+              rng: np.random.Generator) -> None:
+        """A motion that is no gesture (`IDLE_MOTIONS`), slow or small as people's are."""
+        here = builder.position.copy()
+        if kind == "drift":  # a slow wander, 20-40 mm over 1.5-2.5 s
+            for _ in range(3):
+                builder.move_to(_inside(here + rng.normal(0, 15, 3), here), rng.uniform(0.5, 0.8),
+                                "idle")
+        elif kind == "wobble":  # 2-4 Hz, 5-12 mm, for about a second
+            freq, amp = rng.uniform(2.0, 4.0), rng.uniform(5.0, 12.0)
+            axis = rng.normal(0, 1, 3)
+            axis /= np.linalg.norm(axis)
+            for i in range(int(rng.uniform(0.8, 1.5) * freq * 2)):
+                builder.move_to(here + axis * amp * (1 if i % 2 == 0 else -1), 0.5 / freq, "idle")
+            builder.move_to(here, 0.25 / freq, "idle")
+        elif kind == "reposition":  # 80-180 mm at 60-150 mm/s mean speed
+            distance = rng.uniform(80.0, 180.0)
+            direction = rng.normal(0, 1, 3)
+            direction /= np.linalg.norm(direction)
+            target = _inside(here + direction * distance, here + direction * distance)
+            builder.move_to(target, distance / rng.uniform(60.0, 150.0), "idle")
+        else:  # "turn": a slow palm roll of 20-50° and back, at 10-35°/s
+            angle = np.radians(rng.uniform(20.0, 50.0)) * rng.choice([-1.0, 1.0])
+            rate = np.radians(rng.uniform(10.0, 35.0))
+            builder.roll_to(builder.roll_angle + angle, abs(angle) / rate, "idle")
+            builder.hold(rng.uniform(0.1, 0.4), "idle")
+            builder.roll_to(builder.roll_angle - angle, abs(angle) / rate, "idle")
+        builder.hold(rng.uniform(0.1, 0.3) / style.speed, "idle")
+
     def _stroke(self, builder: TimelineBuilder, step: GestureStep, style: UserStyle,
                 rng: np.random.Generator, bow_sign: float) -> None:
-        centre = CENTRE_MM + rng.normal(0, 6, 3)
-        builder.move_to(centre, 0.35 / style.speed, "return")
-        builder.hold(0.25 / style.speed, "prepare")  # strokes start from rest in the centre
+        centre = CENTRE_MM + rng.normal(0, style.stroke_spread_mm, 3)  # wherever the hand is
+        rest = style.rest_s * rng.uniform(0.0, 1.0)  # often next to no rest at all
         if step.gesture == "rotate":
+            builder.move_to(centre, 0.35 / style.speed, "return")
+            builder.hold(max(rest, 0.05), "prepare")
             # roll > 0 raises the thumb side on either hand (the model keeps anatomy).
             builder.roll_to(np.radians(step.angle_deg), 0.6 / style.speed, "stroke", "rotate")
             builder.hold(0.3 / style.speed, "stroke", "rotate")
@@ -158,10 +203,20 @@ class SimulatedUser:
         length = STROKE_MM * style.amplitude * rng.uniform(0.9, 1.1)
         sideways = np.array([direction[1], -direction[0], 0.0])
         bow = bow_sign * style.curvature * length * sideways
-        builder.move_to(centre + direction * length, 0.45 / style.speed * rng.uniform(0.9, 1.1),
-                        "stroke", step.gesture, bow=bow)
-        builder.hold(0.15 / style.speed, "stroke", step.gesture)
-        builder.move_to(centre, 0.9 / style.speed, "return")  # slower, from outside the centre
+        # The swipe crosses the middle of the field: it starts a part of its length before.
+        start = centre - direction * length * style.stroke_lead * rng.uniform(0.7, 1.3)
+        start = _inside(start, start + direction * length)
+        builder.move_to(start, 0.35 / style.speed, "return")
+        if rest >= 0.5 / builder.rate_hz:
+            builder.hold(rest, "prepare")
+        horizontal = abs(direction[0]) > 0.5
+        roll = np.radians(rng.normal(0.0, style.swipe_roll_deg * (1.0 if horizontal else 0.5)))
+        seconds = 0.45 / style.speed * rng.uniform(0.9, 1.1)
+        builder.move_to(start + direction * length, seconds, "stroke", step.gesture, bow=bow,
+                        roll_to=roll)
+        builder.hold(0.15 / style.speed * rng.uniform(0.0, 1.0), "stroke", step.gesture)
+        builder.move_to(start, seconds * style.return_slowdown * rng.uniform(0.9, 1.3),
+                        "return", roll_to=0.0)
 
     def _render(self, timeline: Timeline, user: str, episode: Episode, t0: float
                 ) -> Iterator[SourceFrame]:

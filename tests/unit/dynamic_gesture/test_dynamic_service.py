@@ -92,7 +92,7 @@ def test_a_take_is_the_first_real_stroke_of_each_hand_appearance(synth):
 
 def test_a_roll_scale_other_than_the_templates_is_refused(tmp_path):
     service = DynamicGesture(DynamicGestureSettings(user_dir=str(tmp_path),
-                                                    roll_scale_mm_per_rad=50.0))
+                                                    roll_scale_mm_per_rad=100.0))
     with pytest.raises(ConfigError, match="roll_scale_mm_per_rad"):
         FakeBus(service)
 

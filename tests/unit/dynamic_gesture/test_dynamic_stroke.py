@@ -9,9 +9,12 @@ from cbgo.errors import ConfigError
 from cbgo.hands.model import HandShape, build_hand, neutral_pose
 from cbgo.services.dynamic_gesture.stroke import (
     DEFAULT_CENTRE_MM,
+    ReturnFilter,
     Segmenter,
     SegmenterConfig,
     palm_roll,
+    reported,
+    roll_increment,
 )
 from cbgo.simuser.motion import CENTRE_MM
 
@@ -39,25 +42,80 @@ def test_a_swipe_from_rest_in_the_centre_is_one_stroke_evaluated_during_and_at_i
     assert starts == {final.t_start}  # every window of a stroke starts where it started
 
 
-def test_the_return_move_from_outside_the_centre_is_not_a_stroke(synth):
+def reported_windows(windows, classify):
+    """The windows a service reports; `classify(w)` is w's gesture probability (or a bool)."""
+    def probs(w):  # one gesture, then none
+        p = float(classify(w))
+        p = 0.9 if p == 1.0 else 0.1 if p == 0.0 else p
+        return np.array([p, 1.0 - p])
+
+    return [w for w, _ in reported(windows, ReturnFilter(SegmenterConfig().return_s), probs)]
+
+
+def test_the_slower_return_move_after_a_gesture_is_not_reported(synth):
     traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.4), ("move", 0.9, (0, -160, 0)),
                              ("hold", 0.5)])
     windows = synth.feed(Segmenter(), traj)
-    assert len(finals(windows)) == 1
-    assert {w.stroke for w in windows} == {1}
+    assert {w.stroke for w in finals(windows)} == {1, 2}  # the segmenter sees both moves
+    kept = reported_windows(windows, classify=lambda w: w.stroke == 1)
+    assert {w.stroke for w in kept} == {1}
 
 
-def test_a_motion_that_starts_outside_the_centre_is_not_a_stroke(synth):
+def test_a_move_that_reverses_a_non_gesture_is_reported(synth):
+    # A slow preparation downwards (classified "none"), then the swipe up.
+    traj = synth.trajectory([REST, ("move", 1.0, (0, -80, 0)), ("hold", 0.2), SWIPE_UP,
+                             ("hold", 0.5)])
+    windows = synth.feed(Segmenter(), traj)
+    kept = reported_windows(windows, classify=lambda w: w.obs[-1, 1] > 100)
+    assert any(w.final and w.obs[-1, 1] > 140 for w in kept)
+
+
+def test_a_fast_stroke_from_anywhere_in_the_field_is_a_stroke(synth):
+    start = synth.CENTRE + [150, -60, 80]
+    traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.4)], start=start)
+    (final,) = finals(synth.feed(Segmenter(), traj))
+    assert 140 < final.obs[-1, 1] < 170
+
+
+def test_with_the_centre_rule_a_motion_that_starts_outside_the_centre_is_not_a_stroke(synth):
     traj = synth.trajectory([REST, ("move", 0.45, (0, 0, 0))], start=synth.CENTRE + [150, 0, 0])
     traj += synth.trajectory([("move", 0.45, (0, 160, 0)), ("hold", 0.4)],
                              start=synth.CENTRE + [150, 0, 0])
-    assert synth.feed(Segmenter(), traj) == []
+    assert synth.feed(Segmenter(SegmenterConfig(centre_rule=True)), traj) == []
 
 
-def test_a_hand_that_reaches_the_centre_while_moving_is_not_armed(synth):
+def test_with_the_centre_rule_a_hand_that_reaches_the_centre_while_moving_is_not_armed(synth):
     enter = synth.trajectory([("move", 0.6, -np.array([40.0, -40.0, 300.0])), ("hold", 1.0)],
                              start=synth.CENTRE + [40.0, -40.0, 300.0])
-    assert synth.feed(Segmenter(), enter) == []
+    assert synth.feed(Segmenter(SegmenterConfig(centre_rule=True)), enter) == []
+
+
+def test_a_hand_that_turns_back_without_stopping_ends_the_stroke_at_its_farthest_point(synth):
+    traj = synth.trajectory([REST, ("move", 0.4, (0, 160, 0)), ("move", 0.4, (0, -160, 0)),
+                             ("hold", 0.5)])
+    # A long end hold: the brief stop at the top does not end the stroke, the turn does.
+    windows = synth.feed(Segmenter(SegmenterConfig(end_hold_s=0.3, end_fraction=0.0)), traj)
+    first, second = finals(windows)
+    assert first.ended == "turned" and 140 < first.obs[-1, 1] <= 161
+    assert second.obs[-1, 1] < -120  # the move back is a stroke of its own, from the top
+
+
+def test_the_roll_of_an_upright_hand_is_measured_about_its_direction():
+    # Fingers up, palm towards -z (a hand held before a camera): turned 30° about +y.
+    up = [0.0, 1.0, 0.0]
+    before, after = [0.0, 0.0, -1.0], [-math.sin(math.radians(30)), 0.0, -math.cos(
+        math.radians(30))]
+    assert abs(abs(roll_increment(before, after, up)) - math.radians(30)) < 1e-6
+    assert roll_increment(before, after, up, "left") == -roll_increment(before, after, up)
+
+
+def test_a_stroke_ends_when_the_hand_falls_well_below_its_peak_speed_despite_jitter(synth):
+    # Depth-camera skeletons jitter at 100-200 mm/s: the absolute end threshold is never met.
+    traj = synth.trajectory([REST, SWIPE_UP, ("hold", 1.5)], tremor=10.0, seed=2)
+    assert finals(synth.feed(Segmenter(SegmenterConfig(end_fraction=0.0)), traj)) == []
+    first = finals(synth.feed(Segmenter(), traj))[0]
+    assert first.ended == "slowed" and first.t_end - first.t_start < 1.0
+    assert 130 < first.obs[-1, 1] < 180
 
 
 def test_a_still_hand_with_tremor_never_starts_a_stroke(synth):
@@ -70,7 +128,8 @@ def test_a_palm_roll_in_place_is_a_stroke_seen_in_the_roll_dimension(synth):
                                                         ("hold", 0.5)]))
     (final,) = finals(windows)
     assert np.abs(final.obs[-1, :3]).max() < 2.0
-    assert abs(abs(final.obs[-1, 3]) - 100 * math.radians(90)) < 15  # k = 100 mm/rad
+    k = SegmenterConfig().roll_scale_mm_per_rad
+    assert abs(abs(final.obs[-1, 3]) - k * math.radians(90)) < 0.1 * k
 
 
 def test_a_hand_that_disappears_mid_stroke_ends_it_with_what_was_seen(synth):
@@ -116,3 +175,33 @@ def test_invalid_settings_name_the_fix():
         SegmenterConfig(centre_mm=[0.0, 1.0])
     with pytest.raises(ConfigError, match="must not exceed"):
         SegmenterConfig(end_speed_mm_s=500.0)
+
+
+def test_a_much_faster_move_back_after_an_unsure_gesture_is_reported(synth):
+    # The first move was slow (a preparation the classifier half took for a gesture); the
+    # second, much faster, is the real stroke.
+    traj = synth.trajectory([REST, ("move", 1.2, (0, -120, 0)), ("hold", 0.3),
+                             ("move", 0.3, (0, 160, 0)), ("hold", 0.5)])
+    windows = synth.feed(Segmenter(), traj)
+    kept = reported_windows(windows, classify=lambda w: 0.6)
+    assert any(w.final and w.obs[-1, 1] > 140 for w in kept)
+    # after a sure gesture, the same move back is its return
+    kept = reported_windows(windows, classify=lambda w: 0.95)
+    assert not any(w.final and w.obs[-1, 1] > 140 for w in kept)
+
+
+def test_a_stroke_cut_short_by_the_hand_leaving_after_a_gesture_is_its_return(synth):
+    segmenter = Segmenter()
+    traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.3), ("move", 0.2, (0, -160, 0))])
+    windows = synth.feed(segmenter, traj[:-4])
+    windows += segmenter.update(traj[-4][0], [])  # gone mid-way back, fast
+    kept = reported_windows(windows, classify=lambda w: True)
+    assert [w.stroke for w in kept if w.final] == [1]
+
+
+def test_a_stroke_soon_after_another_never_reaches_back_into_it(synth):
+    traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.15), ("move", 0.45, (160, 0, 0)),
+                             ("hold", 0.5)], tremor=4.0, seed=1)
+    first, second = finals(synth.feed(Segmenter(), traj))
+    assert second.t_start >= first.t_end
+    assert abs(second.obs[-1, 1]) < 30 and second.obs[-1, 0] > 130

@@ -1,0 +1,415 @@
+"""Real people's strokes through the live services: `cbgo bench dynamic --real DIR`.
+
+The SHREC'17 skeletons (`shrec`) are played as ``cbgo/hands/frame`` at their recorded 30 Hz,
+in real time, to a router, dynamic-gesture and episode running as processes with their default
+settings. Printed, on ``gestures/dynamic`` and on the episode summary's g:
+
+- **Trials**: each swipe sequence (the person's whole recording: preparation, swipe, whatever
+  return it holds) is one episode, the hand then leaving the field. The dynamic answer of a
+  trial is its most probable reported gesture with p ≥ 0.5 (else "nothing"); the episode's is
+  the dynamic gesture with the largest g. Per-class recall, the confusion matrix and the
+  balanced accuracy over the four swipes. The other gestures of the data set (grab, tap,
+  pinch, expand, shake) are played too: any swipe or rotate reported for them is a false
+  trigger.
+- **Continuous streams**: per person, several sequences one after the other without the hand
+  leaving (a slow 0.6 s move from the end of one to the start of the next, then a 0.4 s hold).
+  Recall of the swipes, and false triggers per minute of the time outside the swipes (the
+  returns, holds, moves and the other gestures).
+- **Latency**: from a stroke's last sample (``window[1]``) to the arrival of its last window.
+
+People: ``--split train`` (the default) are the official train split's people, the only ones
+fitting, tuning and selection may look at. ``--split test`` is reserved for acceptance checks.
+
+Examples::
+
+    cbgo bench dynamic --real ~/.cache/cbgo/shrec17/datasetShrec
+    cbgo bench dynamic --real DIR --per-class 5 --streams 2 --json /tmp/real.json
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cbgo import keys, metrics, wire
+from cbgo.services.dynamic_gesture import shrec, simdata
+from cbgo.services.dynamic_gesture.stroke import GESTURE_P, ReturnFilter, Segmenter, reported
+from cbgo.simuser.motion import CENTRE_MM
+from cbgo.simuser.scenario import IDLE_MOTIONS, Episode, GestureStep, Scenario
+from cbgo.simuser.user import SimulatedUser
+from cbgo.wire import DYNAMIC_GESTURES
+
+OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture of ours
+NOTHING = "nothing"
+P_REPORT = 0.5
+MOVE_S, HOLD_S, LEAVE_S = 0.6, 0.4, 0.6
+
+
+def pick_trials(root: Path, split: str, per_class: int, seed: int) -> list[shrec.Sequence]:
+    """Returns `per_class` sequences of each swipe and of the other gestures, people mixed."""
+    rng = np.random.default_rng(seed)
+    sequences = shrec.read_split(root, split)
+    out = []
+    for gestures in [[g] for g in shrec.SWIPES] + [list(OTHER)]:
+        pool = [s for s in sequences if s.gesture in gestures]
+        out += [pool[i] for i in rng.choice(len(pool), min(per_class, len(pool)),
+                                            replace=False)]
+    return out
+
+
+def stream_joints(sequences: list[shrec.Sequence]) -> tuple[np.ndarray, list[tuple]]:
+    """Returns the joints of sequences played back to back and each one's (name, t0, t1).
+
+    Between two sequences the hand moves slowly (minimum jerk, `MOVE_S`) from where one ended
+    to where the next begins and holds still for `HOLD_S`: it never leaves the field.
+    """
+    parts, spans, t = [], [], 0.0
+    for seq in sequences:
+        joints = seq.joints()
+        if parts:
+            n = int(MOVE_S * shrec.RATE_HZ)
+            s = np.linspace(0, 1, n)[:, None, None]
+            s = s**3 * (10 - 15 * s + 6 * s**2)
+            parts.append(parts[-1][-1] + s * (joints[0] - parts[-1][-1]))
+            parts.append(np.repeat(joints[:1], int(HOLD_S * shrec.RATE_HZ), axis=0))
+            t += (len(parts[-1]) + len(parts[-2])) / shrec.RATE_HZ
+        parts.append(joints)
+        spans.append((seq.name, t, t + len(joints) / shrec.RATE_HZ))
+        t += len(joints) / shrec.RATE_HZ
+    return np.concatenate(parts), spans
+
+
+class _Player:
+    """Publishes hand frames in real time and collects what the services say."""
+
+    def __init__(self, stack):
+        self.stack = stack
+        self.pub = stack.publisher(keys.HANDS_FRAME.suffix)
+        self.lock = threading.Lock()
+        self.dynamic: list[tuple[float, dict]] = []
+        self.summaries: list[dict] = []
+        session = stack.session()
+        self.subs = [
+            session.declare_subscriber(stack.keys.of(keys.GESTURES_DYNAMIC), self._on_dynamic),
+            session.declare_subscriber(stack.keys.of(keys.EPISODE_SUMMARY), self._on_summary)]
+        self.seq = 0
+
+    def _on_dynamic(self, sample) -> None:
+        with self.lock:
+            self.dynamic.append((time.time(), wire.decode(sample.payload.to_bytes())))
+
+    def _on_summary(self, sample) -> None:
+        with self.lock:
+            self.summaries.append(wire.decode(sample.payload.to_bytes()))
+
+    def play(self, joints: np.ndarray) -> tuple[float, float]:
+        """Plays (n, 22, 3) joints at 30 Hz, then empty frames; returns the ts span."""
+        hands = shrec.to_hands(joints)
+        t_first = time.time()
+        for i, hand in enumerate([*hands, *([None] * int(LEAVE_S * shrec.RATE_HZ))]):
+            due = t_first + i / shrec.RATE_HZ
+            time.sleep(max(0.0, due - time.time()))
+            self.pub.put(wire.encode({"v": wire.SCHEMA_VERSION, "ts": time.time(),
+                                      "seq": self.seq, "source": "replay",
+                                      "device": "shrec17", "hands": [hand] if hand else []}))
+            self.seq += 1
+        return t_first, t_first + len(hands) / shrec.RATE_HZ
+
+    def wait_summaries(self, count: int, timeout: float = 5.0) -> None:
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            with self.lock:
+                if len(self.summaries) >= count:
+                    return
+            time.sleep(0.02)
+
+
+def _reported(messages: list[dict]) -> list[tuple[str, float, dict]]:
+    """Returns (gesture, p, message) of the messages whose top gesture has p ≥ `P_REPORT`."""
+    out = []
+    for msg in messages:
+        probs = np.asarray(msg["probs"][:-1])
+        top = int(np.argmax(probs))
+        if probs[top] >= P_REPORT:
+            out.append((msg["names"][top], float(probs[top]), msg))
+    return out
+
+
+def _summary_gesture(summary: dict) -> str:
+    """Returns the dynamic gesture with the largest g of an episode summary ("nothing": none)."""
+    block = summary.get("gestures", {})
+    g = dict(zip(block.get("names", []), block.get("probs", []), strict=False))
+    names = [n for n in DYNAMIC_GESTURES if g.get(n, 0.0) > 0.0]
+    return max(names, key=lambda n: g[n]) if names else NOTHING
+
+
+def run_trials(player: _Player, trials: list[shrec.Sequence], log=print) -> dict:
+    """Plays every trial as its own episode; returns the answers per trial."""
+    rows = []
+    for i, seq in enumerate(trials):
+        with player.lock:
+            first, n_sum = len(player.dynamic), len(player.summaries)
+        player.play(seq.joints())
+        player.wait_summaries(n_sum + 1)
+        with player.lock:
+            messages = [m for _, m in player.dynamic[first:]]
+            summary = player.summaries[n_sum] if len(player.summaries) > n_sum else {}
+        reported = _reported(messages)
+        dynamic = max(reported, key=lambda r: r[1])[0] if reported else NOTHING
+        truth = shrec.SWIPES.get(seq.gesture, "none")
+        rows.append({"truth": truth, "person": seq.person, "gesture": seq.name,
+                     "dynamic": dynamic, "summary": _summary_gesture(summary),
+                     "reports": [r[0] for r in reported]})
+        log(f"  [{i + 1}/{len(trials)}] {seq.name} (person {seq.person}): dynamic {dynamic}, "
+            f"summary {rows[-1]['summary']}")
+    return {"trials": rows}
+
+
+def run_stream(player: _Player, sequences: list[shrec.Sequence]) -> dict:
+    """Plays one continuous stream; returns swipe recall and false triggers."""
+    joints, spans = stream_joints(sequences)
+    with player.lock:
+        first = len(player.dynamic)
+    t0, t1 = player.play(joints)
+    time.sleep(0.5)
+    with player.lock:
+        messages = [m for _, m in player.dynamic[first:]]
+    swipes = [(name, t0 + a, t0 + b) for name, a, b in spans if name in shrec.SWIPES.values()]
+    hit = [False] * len(swipes)
+    false = 0
+    for name, _, msg in _reported(messages):
+        w0, w1 = msg["window"]
+        match = [i for i, (s, a, b) in enumerate(swipes) if s == name and w0 < b and w1 > a]
+        if match:
+            hit[match[0]] = True
+        elif not msg["window"] or not any(w0 < b and w1 > a and (s == name)
+                                          for s, a, b in swipes):
+            false += 1
+    swipe_s = sum(b - a for _, a, b in swipes)
+    return {"swipes": len(swipes), "recalled": int(sum(hit)), "false_triggers": false,
+            "other_minutes": max(t1 - t0 - swipe_s, 1e-9) / 60.0}
+
+
+def latencies(player: _Player) -> dict:
+    """Stroke end → arrival of the stroke's last window, over everything collected."""
+    last: dict[tuple, tuple[float, dict]] = {}
+    with player.lock:
+        for arrival, msg in player.dynamic:
+            last[(msg["hand_id"], msg["window"][0])] = (arrival, msg)
+    ms = [1000.0 * (a - m["window"][1]) for a, m in last.values()]
+    if not ms:
+        return {}
+    return {"strokes": len(ms), "p50": float(np.median(ms)), "p90": float(np.percentile(ms, 90)),
+            "max": float(np.max(ms))}
+
+
+def score(rows: list[dict], field: str) -> dict:
+    """Returns the confusion over the swipes (+ nothing) and the balanced accuracy."""
+    names = [*shrec.SWIPES.values(), "rotate", NOTHING]
+    swipe_rows = [r for r in rows if r["truth"] != "none"]
+    y = [names.index(r["truth"]) for r in swipe_rows]
+    pred = [names.index(r[field]) if r[field] in names else names.index(NOTHING)
+            for r in swipe_rows]
+    confusion = metrics.confusion_matrix(np.array(y), np.array(pred), len(names))
+    recall = {n: float(confusion[i, i] / confusion[i].sum()) for i, n in enumerate(names[:4])
+              if confusion[i].sum()}
+    false = sum(1 for r in rows if r["truth"] == "none" and r[field] != NOTHING)
+    return {"recall": recall, "balanced_accuracy": float(np.mean(list(recall.values()))),
+            "confusion": confusion.tolist(), "names": names,
+            "other_trials": sum(1 for r in rows if r["truth"] == "none"),
+            "other_false": false}
+
+
+def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
+             json_path: Path | None, log=print) -> int:
+    """The whole real-data bench (see the module docstring)."""
+    from cbgo.testing import Stack  # noqa: PLC0415 (test harness only when benching live)
+
+    if split == "test":
+        log("note: the test split's people are reserved for acceptance checks; never tune on "
+            "these figures")
+    trials = pick_trials(root, split, per_class, seed)
+    people = sorted({s.person for s in shrec.read_split(root, split)})
+    rng = np.random.default_rng(seed + 1)
+    stream_sets = []
+    for person in rng.choice(people, min(streams, len(people)), replace=False):
+        own = [s for s in shrec.read_split(root, split) if s.person == person
+               and (s.gesture in shrec.SWIPES or s.gesture in OTHER)]
+        stream_sets.append([own[i] for i in rng.permutation(len(own))[:10]])
+    with tempfile.TemporaryDirectory() as tmp, Stack(Path(tmp)) as stack:
+        stack.start_router()
+        for name in ("dynamic-gesture", "episode"):
+            stack.start_service(name, env={"CBGO_DATA_DIR": tmp})
+        stack.wait_alive(["router", "dynamic-gesture", "episode"], timeout=90)
+        player = _Player(stack)
+        time.sleep(0.5)  # let the subscribers' declarations reach the router
+        log(f"{len(trials)} trials of the {split} split, real time")
+        result = run_trials(player, trials, log)
+        result["streams"] = [run_stream(player, s) for s in stream_sets]
+        result["latency_ms"] = latencies(player)
+    for field in ("dynamic", "summary"):
+        result[field] = score(result["trials"], field)
+        _print_score(field, result[field])
+    recalled = sum(s["recalled"] for s in result["streams"])
+    swipes = sum(s["swipes"] for s in result["streams"])
+    minutes = sum(s["other_minutes"] for s in result["streams"])
+    false = sum(s["false_triggers"] for s in result["streams"])
+    if swipes:
+        log(f"\ncontinuous streams ({len(result['streams'])}, hand never leaves): recall "
+            f"{recalled}/{swipes} = {recalled / swipes:.0%}; false triggers {false} in "
+            f"{minutes:.1f} min outside swipes = {false / max(minutes, 1e-9):.2f}/min")
+    lat = result["latency_ms"]
+    if lat:
+        log(f"latency stroke end -> last window arrives: p50 {lat['p50']:.0f} ms, p90 "
+            f"{lat['p90']:.0f} ms, max {lat['max']:.0f} ms ({lat['strokes']} strokes)")
+    if json_path:
+        json_path.write_text(json.dumps(result, indent=1))
+    return 0
+
+
+def _print_score(field: str, block: dict) -> None:
+    where = "gestures/dynamic" if field == "dynamic" else "episode/summary g"
+    print(f"\n{where}: balanced accuracy over the swipes {block['balanced_accuracy']:.1%}")
+    print(metrics.format_confusion(np.asarray(block["confusion"]), block["names"]))
+    print("recall " + ", ".join(f"{n} {r:.0%}" for n, r in block["recall"].items()))
+    print(f"other gestures (grab, tap, expand, pinch, shake): {block['other_false']} of "
+          f"{block['other_trials']} trials reported a dynamic gesture")
+
+
+HABITS = ("length_mm", "roll_deg", "start_along", "duration_s", "peak_mm_s", "bow", "returned",
+          "return_speed_ratio")
+
+
+def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: float
+           ) -> list[dict]:
+    """Measures each swipe stroke of one recording, the way real and simulated are compared.
+
+    Per final window labelled a swipe: its length along the swipe's direction, the palm roll
+    over it, where it started along its direction relative to `middle` (the recording's median
+    palm position) in units of its length, its duration and peak speed, its bow (largest
+    sideways deviation / length), and whether a stroke followed it within 1.5 s (a return)
+    and that stroke's peak speed relative to it.
+    """
+    finals = [(w, t) for w, t in zip(windows, truths, strict=True) if w.final]
+    out = []
+    for i, (w, truth) in enumerate(finals):
+        if truth not in shrec.SWIPE_DIRECTIONS:
+            continue
+        d = np.asarray(shrec.SWIPE_DIRECTIONS[truth])
+        xyz = w.obs[:, :3]
+        length = max(float(xyz[-1] @ d), 1.0)
+        start = w.origin if w.origin is not None else middle
+        after = [v for v, _ in finals[i + 1:] if v.t_start - w.t_end <= 1.5]
+        out.append({"length_mm": length, "roll_deg": float(np.degrees(w.obs[-1, 3] / roll_scale)),
+                    "start_along": float((start - middle) @ d / length),
+                    "duration_s": w.t_end - w.t_start, "peak_mm_s": w.peak_speed,
+                    "bow": float(np.abs(xyz - np.outer(xyz @ d, d)).max() / length),
+                    "returned": float(bool(after)),
+                    "return_speed_ratio": (after[0].peak_speed / max(w.peak_speed, 1.0)
+                                           if after else np.nan)})
+    return out
+
+
+def real_habits(root: Path, split: str, config) -> list[dict]:
+    """Returns `habits` of every swipe of a split's people."""
+    out = []
+    for seq in shrec.read_split(root, split, shrec.SWIPES):
+        segmenter = Segmenter(config)
+        windows = shrec.segment(seq, segmenter)
+        palms = seq.joints()[:, 1] * 1000.0 + shrec.DEFAULT_OFFSET_MM
+        out += habits(windows, shrec.label_windows(seq.name, windows), np.median(palms, 0),
+                      segmenter.config.roll_scale_mm_per_rad)
+    return out
+
+
+def simulated_habits(users: int, seed: int, config) -> list[dict]:
+    """Returns `habits` of simulated users' swipes (the training style range)."""
+    out = []
+    swipes = tuple(shrec.SWIPE_DIRECTIONS)
+    for user_seed in range(seed, seed + users):
+        scenario = simdata.user_scenario(user_seed, simdata.TRAIN, 3, statics=False,
+                                         gestures=swipes)
+        frames = list(SimulatedUser(scenario, 60.0).frames())
+        segmenter = Segmenter(config)
+        windows = [w for f in frames for w in segmenter.update(f.t, f.hands)]
+        times = np.array([f.t for f in frames])
+        truths = [simdata.truth_of(w, times, [f.label for f in frames]) for w in windows]
+        out += habits(windows, truths, CENTRE_MM, segmenter.config.roll_scale_mm_per_rad)
+    return out
+
+
+def print_realism(real: list[dict], simulated: list[dict]) -> dict:
+    """Prints the habits side by side (median [10th, 90th percentile]); returns them."""
+    table = {}
+    print(f"\n{'swipe habit':<20}{'real (SHREC train)':>26}{'simulated':>26}")
+    for name in HABITS:
+        cells = []
+        for rows in (real, simulated):
+            values = np.array([r[name] for r in rows], dtype=float)
+            values = values[np.isfinite(values)]
+            cells.append([float(np.median(values)), float(np.percentile(values, 10)),
+                          float(np.percentile(values, 90))] if len(values) else [np.nan] * 3)
+        table[name] = {"real": cells[0], "simulated": cells[1]}
+        print(f"{name:<20}" + "".join(f"{m:>10.2f} [{lo:6.2f},{hi:7.2f}]" for m, lo, hi in cells))
+    print(f"{'strokes':<20}{len(real):>26}{len(simulated):>26}")
+    return table
+
+
+# ============================================================ synthetic streams (simulated)
+
+
+def stream_scenario(seed: int, ranges, swipes: int = 8) -> Scenario:
+    """One long episode without the hand leaving: swipes and rotates among idle motions."""
+    rng = np.random.default_rng(seed)
+    style, (lo, hi) = ranges.draw(rng, f"user{seed}")
+    steps = [GestureStep(str(g)) for g in rng.choice(list(shrec.SWIPE_DIRECTIONS), swipes)]
+    steps += [GestureStep("rotate", angle_deg=float(rng.uniform(lo, hi))) for _ in range(2)]
+    steps += [GestureStep(str(m)) for m in rng.choice(IDLE_MOTIONS, swipes)]
+    order = rng.permutation(len(steps))
+    return Scenario(episodes=[Episode(gestures=[steps[i] for i in order], pause_s=0.3)],
+                    users={f"user{seed}": style}, name=f"stream{seed}", seed=seed)
+
+
+def score_stream(classifier, scenario: Scenario, config) -> dict:
+    """Plays a scenario through the service's logic; returns recall and false triggers."""
+    frames = list(SimulatedUser(scenario, 60.0).frames())
+    times = np.array([f.t for f in frames])
+    labels = [f.label for f in frames]
+    strokes = simdata.true_strokes(times, labels)
+    segmenter = Segmenter(config)
+    windows = [w for f in frames for w in segmenter.update(f.t, f.hands)]
+    hit = [False] * len(strokes)
+    false = 0
+    for window, probs in reported(windows, ReturnFilter(segmenter.config.return_s),
+                                  classifier.classify):
+        top = int(np.argmax(probs[:-1]))
+        if probs[top] < GESTURE_P:
+            continue
+        name = classifier.names[top]
+        match = [i for i, (g, a, b) in enumerate(strokes)
+                 if g == name and window.t_start < b and window.t_end > a]
+        for i in match:
+            hit[i] = True
+        false += not match
+    busy = sum(b - a for _, a, b in strokes)
+    return {"strokes": len(strokes), "recalled": int(sum(hit)), "false_triggers": false,
+            "other_minutes": max(times[-1] - times[0] - busy, 1e-9) / 60.0}
+
+
+def run_streams(classifier, users: int, seed: int, config, ranges) -> dict:
+    """Scores `users` continuous streams; prints and returns the totals."""
+    rows = [score_stream(classifier, stream_scenario(seed + i, ranges), config)
+            for i in range(users)]
+    total = {k: sum(r[k] for r in rows) for k in rows[0]}
+    print(f"\nsynthetic continuous streams ({users} simulated users, hand never leaves; "
+          f"swipes from anywhere, returns, drift, wobble, slow re-positioning, slow palm "
+          f"turns): recall {total['recalled']}/{total['strokes']} = "
+          f"{total['recalled'] / max(total['strokes'], 1):.1%}; false triggers "
+          f"{total['false_triggers']} in {total['other_minutes']:.1f} min outside strokes = "
+          f"{total['false_triggers'] / total['other_minutes']:.2f}/min")
+    return total

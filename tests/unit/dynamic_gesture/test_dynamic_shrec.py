@@ -1,0 +1,115 @@
+"""The SHREC'17 converter and the real-data helpers, on skeleton files laid out like its own."""
+
+import numpy as np
+import pytest
+
+from cbgo import keys, wire
+from cbgo.services.dynamic_gesture import realbench, shrec, simdata, train
+from cbgo.services.dynamic_gesture.stroke import Segmenter
+
+
+def upright_hand(palm_m=(0.427, -0.307, 0.488)) -> np.ndarray:
+    """22 joints (m) of a right hand held up before the camera, palm towards it (−z)."""
+    palm = np.asarray(palm_m)
+    joints = np.zeros((22, 3))
+    joints[0] = palm + [0.0, -0.05, 0.0]  # wrist below the palm
+    joints[1] = palm
+    # thumb on the person's left of a right hand whose palm faces the camera: −x
+    bases = {0: -0.045, 1: -0.025, 2: 0.0, 3: 0.02, 4: 0.04}
+    for f, x in bases.items():
+        base = palm + [x, 0.03 if f else -0.01, 0.0]
+        for j in range(4):  # slightly curled towards the palm side (−z)
+            joints[2 + 4 * f + j] = base + [0.0, 0.025 * j, -0.004 * j * j]
+    return joints
+
+
+def write_sequence(root, gesture, person, take, joints):
+    path = root / f"gesture_{gesture}/finger_1/subject_{person}/essai_{take}/skeletons_world.txt"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(path, joints.reshape(len(joints), -1))
+    return path
+
+
+@pytest.fixture
+def dataset(tmp_path):
+    """A tiny copy: a swipe right of person 2 (train) and one of person 1 (test)."""
+    t = np.linspace(0, 1, 30)[:, None, None]
+    s = t**3 * (10 - 15 * t + 6 * t**2)
+    swipe = upright_hand()[None] + s * np.array([0.2, 0.0, 0.0])  # 200 mm to the right
+    still = np.repeat(upright_hand()[None], 10, axis=0)
+    joints = np.concatenate([still, swipe, np.repeat(swipe[-1:], 10, axis=0)])
+    write_sequence(tmp_path, 7, 2, 1, joints)
+    write_sequence(tmp_path, 7, 1, 1, joints)
+    (tmp_path / "train_gestures.txt").write_text(f"7 1 2 1 7 13 {len(joints)}\n")
+    (tmp_path / "test_gestures.txt").write_text(f"7 1 1 1 7 13 {len(joints)}\n")
+    return tmp_path
+
+
+def test_every_converted_frame_fits_the_contract(dataset):
+    (seq,) = shrec.read_split(dataset, "train")
+    for msg in shrec.frames(seq, t0=100.0):
+        wire.validate(msg, wire.schema_for(keys.HANDS_FRAME.suffix))
+
+
+def test_the_axes_are_the_leap_frames_and_the_hand_is_upright_palm_to_the_sensor(dataset):
+    (seq,) = shrec.read_split(dataset, "train")
+    hands = shrec.to_hands(seq.joints())
+    first, last = np.array(hands[0]["palm_position"]), np.array(hands[-1]["palm_position"])
+    assert np.allclose(last - first, [200.0, 0.0, 0.0], atol=1e-6)  # swipe right is +x, mm
+    assert np.allclose(hands[0]["direction"], [0, 1, 0], atol=0.05)  # fingers up
+    assert np.allclose(hands[0]["palm_normal"], [0, 0, -1], atol=0.05)  # towards the camera
+    # the median palm of the train split's swipes is put at the field centre
+    assert np.allclose(first, shrec.FIELD_CENTRE_MM, atol=1.0)
+
+
+def test_splits_are_read_from_their_lists_and_never_share_people(dataset):
+    assert [s.person for s in shrec.read_split(dataset, "train")] == [2]
+    assert [s.person for s in shrec.read_split(dataset, "test")] == [1]
+    (dataset / "test_gestures.txt").write_text("7 1 2 1 7 13 50\n")
+    with pytest.raises(ValueError, match="share people"):
+        shrec.read_split(dataset, "train")
+
+
+def test_a_missing_copy_says_where_to_get_it(tmp_path):
+    with pytest.raises(FileNotFoundError, match="giach68/gesturesCodes"):
+        shrec.read_split(tmp_path, "train")
+
+
+def test_the_swipe_is_the_stroke_that_goes_farthest_its_way(dataset):
+    (seq,) = shrec.read_split(dataset, "train")
+    windows = shrec.segment(seq, Segmenter())
+    truths = shrec.label_windows(seq.name, windows)
+    assert "swipe_right" in truths
+    assert shrec.label_windows("grab", windows) == ["none"] * len(windows)
+    (habit,) = realbench.habits(windows, truths, np.array(shrec.FIELD_CENTRE_MM), 100.0)
+    assert 180 < habit["length_mm"] < 205 and abs(habit["roll_deg"]) < 2
+
+
+def test_a_continuous_stream_keeps_the_hand_in_view_between_recordings(dataset):
+    seqs = shrec.read_split(dataset, "train") + shrec.read_split(dataset, "test")
+    joints, spans = realbench.stream_joints(seqs)
+    assert [name for name, _, _ in spans] == ["swipe_right", "swipe_right"]
+    steps = np.linalg.norm(np.diff(joints[:, 1], axis=0), axis=1)
+    assert steps.max() < 0.03  # no jump: the hand moves back between the two, slowly
+    assert spans[1][1] > spans[0][2]
+
+
+def test_leave_people_out_scores_each_person_with_a_library_learned_without_them(tmp_path):
+    t = np.linspace(0, 1, 15)[:, None, None]
+    s = t**3 * (10 - 15 * t + 6 * t**2)
+    rows = []
+    for person, (gesture, step) in {2: (7, [0.2, 0, 0]), 3: (7, [0.22, 0, 0]),
+                                    4: (9, [0, 0.18, 0]), 5: (9, [0, 0.2, 0])}.items():
+        swipe = upright_hand()[None] + s * np.array(step)
+        joints = np.concatenate([np.repeat(swipe[:1], 10, 0), swipe, np.repeat(swipe[-1:], 10, 0)])
+        write_sequence(tmp_path, gesture, person, 1, joints)
+        rows.append(f"{gesture} 1 {person} 1 {gesture} {gesture * 2 - 1} {len(joints)}")
+    (tmp_path / "train_gestures.txt").write_text("\n".join(rows) + "\n")
+    (tmp_path / "test_gestures.txt").write_text("")
+    recordings = shrec.sequence_windows(shrec.read_split(tmp_path, "train"))
+    sim = [simdata.run_user(7, simdata.TRAIN, reps=1)]
+    block = train.cross_validate(sim, sim, recordings, 2, 1.5, log=lambda *_: None)
+    assert block["people"] == [2, 3, 4, 5]
+    confusion = np.asarray(block["confusion"])
+    assert confusion.sum() == 4 and confusion[:4].sum() == 4  # every recording scored once
+    assert set(block["recall"]) == set(shrec.SWIPE_DIRECTIONS)
