@@ -233,6 +233,9 @@ def _info(frames: Frames) -> None:
         print(f"  {pose:10s} → {role:12s} {int(sel.sum()):5d} frames; extended T I M R P "
               + " ".join(f"{e:.2f}" for e in ext)
               + f"; confidence {np.median(frames.confidence[sel]):.2f}")
+    print("median tracking confidence per person: " + ", ".join(
+        f"{u}: {np.median(frames.confidence[frames.user == u]):.2f}"
+        for u in np.unique(frames.user)))
 
 
 def main(argv: list[str] | None = None) -> int:
