@@ -223,7 +223,7 @@ class TestDefaultProject:
         assert after["RestartCount"] == before["RestartCount"] + 1
         figure(f"planner's process killed (kill -9): restarted by the restart policy, its "
                f"liveliness token back {token_s:.1f} s after the kill, the container healthy "
-               f"again after {healthy_s:.1f} s (healthcheck every 10 s)")
+               f"again after {healthy_s:.1f} s (healthcheck every 30 s)")
 
     def test_a_docker_killed_service_stays_down_until_compose_up_brings_it_back(
             self, default_project):
