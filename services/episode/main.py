@@ -52,6 +52,9 @@ class EpisodeSettings:
         "an episode ends once no hand has been seen for this long, s (0.02-2)"))
     check_period_s: float = field(default=0.005, metadata=_help(
         "how often the end condition is checked between frames, s"))
+    clock_slack_s: float = field(default=0.35, metadata=_help(
+        "the local clock ends an episode only this long after the debounce (frames that "
+        "arrive late must not split a gesture; frame time stamps end it on time), s"))
     threshold: float = field(default=0.6, metadata=_help(
         "evidence threshold E_t at which a gesture triggers (0-1]"))
     static_tau_s: float = field(default=0.3, metadata=_help(
@@ -86,6 +89,8 @@ class EpisodeSettings:
         if not 0.001 <= self.check_period_s <= self.debounce_s:
             raise ConfigError(f"check_period_s={self.check_period_s} must be within 0.001 s "
                               "and debounce_s")
+        if not 0.0 <= self.clock_slack_s <= 5.0:
+            raise ConfigError(f"clock_slack_s={self.clock_slack_s} must be within 0-5 s")
         if not 0.0 < self.threshold <= 1.0:
             raise ConfigError(f"threshold={self.threshold} must be within (0, 1]")
         for name in ("static_tau_s", "dynamic_tau_s", "max_gap_s", "max_ray_m"):
@@ -138,7 +143,7 @@ class Episode(Service):
     def __init__(self, settings: EpisodeSettings):
         super().__init__(settings)
         self.clock, self.wall = time.monotonic, time.time
-        self.segmenter = Segmenter(settings.debounce_s)
+        self.segmenter = Segmenter(settings.debounce_s, settings.clock_slack_s)
         self.builder_settings = settings.builder()
         self.current: EpisodeBuilder | None = None
         self.closed: _Closed | None = None

@@ -8,8 +8,10 @@ end condition is met at *last hand frame + debounce*; it is detected by whicheve
   last hand frame's. Sensors keep streaming empty frames when nobody is in view, so this is the
   usual path; it is exact on the frames' clock but waits for the next frame (up to one frame
   period late). A hand frame after such a gap ends the old episode and starts a new one.
-- **clock**: the service's clock (monotonic, local) says ``debounce_s`` have passed since the
-  last hand frame *arrived*. It catches the end between frames, and when frames stop coming at
+- **clock**: the service's clock (monotonic, local) says ``debounce_s`` plus a slack
+  (``clock_slack_s``) have passed since the last hand frame *arrived*: frames that come late in
+  a burst (a stalled process, a busy network) must not end an episode whose hand is still
+  there. It catches the end between frames, and when frames stop coming at
   all (a sensor unplugged, a replay at its end).
 
 Each `Boundary` carries the local clock time at which the end condition was met (last hand
@@ -48,12 +50,18 @@ class Segmenter:
 
     Args:
         debounce_s: how long no hand must be seen before the episode ends.
+        clock_slack_s: how much longer the local clock waits: frames that arrive late (a
+            loaded machine, a busy network) must not cut a gesture in two; the frames' own
+            time stamps still end it after exactly `debounce_s`.
     """
 
-    def __init__(self, debounce_s: float):
+    def __init__(self, debounce_s: float, clock_slack_s: float = 0.0):
         if not debounce_s > 0:
             raise ValueError(f"debounce_s must be positive, got {debounce_s}")
+        if clock_slack_s < 0:
+            raise ValueError(f"clock_slack_s must not be negative, got {clock_slack_s}")
         self.debounce_s = debounce_s
+        self.clock_wait_s = debounce_s + clock_slack_s
         self.open = False
         self.started_ts = math.nan
         self.last_hand_ts = math.nan
@@ -75,13 +83,13 @@ class Segmenter:
                 self.open, self.started_ts = True, ts
                 out.append(Boundary("start", ts, "frame", now))
             self.last_hand_ts, self.last_hand_at = ts, now
-        elif self.open and now - self.last_hand_at >= self.debounce_s:
+        elif self.open and now - self.last_hand_at >= self.clock_wait_s:
             out.append(self._end("clock"))  # the frame came late: the local clock decides
         return out
 
     def tick(self, now: float) -> Boundary | None:
         """Checks the end condition on the local clock (between frames, or without frames)."""
-        if self.open and now - self.last_hand_at >= self.debounce_s:
+        if self.open and now - self.last_hand_at >= self.clock_wait_s:
             return self._end("clock")
         return None
 

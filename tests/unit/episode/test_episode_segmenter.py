@@ -62,6 +62,19 @@ def test_an_empty_frame_that_arrives_late_is_judged_by_the_local_clock():
     assert end.by == "clock" and end.condition_at == pytest.approx(0.15)
 
 
+def test_with_a_clock_slack_frames_that_arrive_late_in_a_burst_keep_the_episode():
+    seg = Segmenter(0.15, clock_slack_s=0.35)
+    seg.frame(10.0, 0.0, True)
+    # the process stalled for 0.3 s: its timer and an empty frame (a one-frame dropout) run
+    # before the hand frames that were waiting
+    assert seg.tick(0.3) is None
+    assert seg.frame(10.02, 0.3, False) == []
+    assert seg.frame(10.04, 0.3, True) == [] and seg.open
+    assert seg.tick(0.5) is None
+    end = seg.tick(0.3 + 0.5)  # frames really stopped: the clock ends it after both
+    assert end.by == "clock" and end.ts == pytest.approx(10.04)
+
+
 def test_the_debounce_must_be_positive():
     with pytest.raises(ValueError):
         Segmenter(0.0)

@@ -57,7 +57,8 @@ def test_a_one_frame_dropout_does_not_split_the_episode(drive):
 def test_the_timer_ends_the_episode_when_frames_stop(drive):
     d = drive()
     d.hold(0.3)
-    assert d.tick(0.1) == []
+    wait = d.svc.settings.debounce_s + d.svc.settings.clock_slack_s
+    assert d.tick(wait - 0.05) == []
     out = d.tick(0.06)
     assert [k for k, _ in out] == ["episode/event", "episode/summary"]
     assert d.svc.ended_by["clock"] == 1
