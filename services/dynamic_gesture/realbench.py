@@ -14,7 +14,8 @@ settings. Printed, on ``gestures/dynamic`` and on the episode summary's g:
 - **Continuous streams**: per person, several sequences one after the other without the hand
   leaving (a slow 0.6 s move from the end of one to the start of the next, then a 0.4 s hold).
   Recall of the swipes, and false triggers per minute of the time outside the swipes (the
-  returns, holds, moves and the other gestures).
+  returns, holds, moves and the other gestures): a stroke reported as a gesture (p ≥ 0.5) that
+  overlaps no swipe of that name, counted once however many of its windows were reported.
 - **Latency**: from a stroke's last sample (``window[1]``) to the arrival of its last window.
 
 People: ``--split train`` (the default) are the official train split's people, the only ones
@@ -47,7 +48,7 @@ from cbgo.wire import DYNAMIC_GESTURES
 OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture of ours
 NOTHING = "nothing"
 P_REPORT = 0.5
-MOVE_S, HOLD_S, LEAVE_S = 0.6, 0.4, 0.6
+MOVE_S, MOVE_MM_S, HOLD_S, LEAVE_S = 0.6, 100.0, 0.4, 0.6
 
 
 def pick_trials(root: Path, split: str, per_class: int, seed: int) -> list[shrec.Sequence]:
@@ -65,14 +66,16 @@ def pick_trials(root: Path, split: str, per_class: int, seed: int) -> list[shrec
 def stream_joints(sequences: list[shrec.Sequence]) -> tuple[np.ndarray, list[tuple]]:
     """Returns the joints of sequences played back to back and each one's (name, t0, t1).
 
-    Between two sequences the hand moves slowly (minimum jerk, `MOVE_S`) from where one ended
-    to where the next begins and holds still for `HOLD_S`: it never leaves the field.
+    Between two sequences the hand moves slowly (minimum jerk, `MOVE_MM_S` on average, at least
+    `MOVE_S`) from where one ended to where the next begins and holds still for `HOLD_S`: it
+    never leaves the field.
     """
     parts, spans, t = [], [], 0.0
     for seq in sequences:
         joints = seq.joints()
         if parts:
-            n = int(MOVE_S * shrec.RATE_HZ)
+            distance = float(np.linalg.norm(joints[0, 1] - parts[-1][-1, 1])) * 1000.0
+            n = int(max(MOVE_S, distance / MOVE_MM_S) * shrec.RATE_HZ)
             s = np.linspace(0, 1, n)[:, None, None]
             s = s**3 * (10 - 15 * s + 6 * s**2)
             parts.append(parts[-1][-1] + s * (joints[0] - parts[-1][-1]))
@@ -181,15 +184,15 @@ def run_stream(player: _Player, sequences: list[shrec.Sequence]) -> dict:
         messages = [m for _, m in player.dynamic[first:]]
     swipes = [(name, t0 + a, t0 + b) for name, a, b in spans if name in shrec.SWIPES.values()]
     hit = [False] * len(swipes)
-    false = 0
+    false_strokes = set()  # a stroke reported wrongly counts once, however many windows
     for name, _, msg in _reported(messages):
         w0, w1 = msg["window"]
         match = [i for i, (s, a, b) in enumerate(swipes) if s == name and w0 < b and w1 > a]
         if match:
             hit[match[0]] = True
-        elif not msg["window"] or not any(w0 < b and w1 > a and (s == name)
-                                          for s, a, b in swipes):
-            false += 1
+        else:
+            false_strokes.add((msg["hand_id"], w0))
+    false = len(false_strokes)
     swipe_s = sum(b - a for _, a, b in swipes)
     return {"swipes": len(swipes), "recalled": int(sum(hit)), "false_triggers": false,
             "other_minutes": max(t1 - t0 - swipe_s, 1e-9) / 60.0}
@@ -384,7 +387,7 @@ def score_stream(classifier, scenario: Scenario, config) -> dict:
     segmenter = Segmenter(config)
     windows = [w for f in frames for w in segmenter.update(f.t, f.hands)]
     hit = [False] * len(strokes)
-    false = 0
+    false_strokes = set()
     for window, probs in reported(windows, ReturnFilter(segmenter.config.return_s),
                                   classifier.classify):
         top = int(np.argmax(probs[:-1]))
@@ -395,7 +398,9 @@ def score_stream(classifier, scenario: Scenario, config) -> dict:
                  if g == name and window.t_start < b and window.t_end > a]
         for i in match:
             hit[i] = True
-        false += not match
+        if not match:
+            false_strokes.add(window.stroke)
+    false = len(false_strokes)
     busy = sum(b - a for _, a, b in strokes)
     return {"strokes": len(strokes), "recalled": int(sum(hit)), "false_triggers": false,
             "other_minutes": max(times[-1] - times[0] - busy, 1e-9) / 60.0}
