@@ -47,6 +47,7 @@ from cbgo.services.dynamic_gesture.library import (
 from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig, Window
 
 MIN_EXTENT_MM = 40.0
+SETTLE_S = 0.3  # a take starts no sooner after the hand came into view
 DEFAULT_TAKES = 5
 DEFAULT_TIMEOUT_S = 120.0
 
@@ -64,6 +65,7 @@ class TakeRecorder:
         self.segmenter = Segmenter(config)
         self.takes: list[Window] = []
         self._taken: set[int] = set()  # hand ids that already gave their take
+        self._seen: dict[int, float] = {}  # hand id -> when it came into view
 
     @property
     def done(self) -> bool:
@@ -71,11 +73,18 @@ class TakeRecorder:
         return len(self.takes) >= self.wanted
 
     def feed(self, t: float, hands: list[dict]) -> Window | None:
-        """Feeds one frame; returns a new take when one was just captured."""
+        """Feeds one frame; returns a new take when one was just captured.
+
+        A take starts once the hand has been in view for `SETTLE_S`: strokes may start at
+        first sight, and the move that brings the hand into the field is none.
+        """
+        for hand in hands:
+            self._seen.setdefault(int(hand["id"]), t)
         new = None
         for window in self.segmenter.update(t, hands):
+            settled = window.t_start - self._seen.get(window.hand_id, window.t_start) >= SETTLE_S
             if (window.final and window.ended == "slowed" and window.hand_id not in self._taken
-                    and extent_of(window.obs) >= MIN_EXTENT_MM and not self.done):
+                    and settled and extent_of(window.obs) >= MIN_EXTENT_MM and not self.done):
                 self._taken.add(window.hand_id)
                 self.takes.append(window)
                 new = window

@@ -206,10 +206,10 @@ class SimulatedUser:
         # The swipe crosses the middle of the field: it starts a part of its length before.
         start = centre - direction * length * style.stroke_lead * rng.uniform(0.7, 1.3)
         start = _inside(start, start + direction * length)
-        # Getting there is a slow preparation (60-120 mm/s on average), unlike the stroke.
+        # Getting there is a slow preparation (60-100 mm/s on average, whatever the person's
+        # stroke speed), unlike the stroke.
         distance = float(np.linalg.norm(start - builder.position))
-        builder.move_to(start, max(0.3, distance / rng.uniform(60.0, 120.0)) / style.speed,
-                        "return")
+        builder.move_to(start, max(0.3, distance / rng.uniform(60.0, 100.0)), "return")
         if rest >= 0.5 / builder.rate_hz:
             builder.hold(rest, "prepare")
         horizontal = abs(direction[0]) > 0.5

@@ -118,6 +118,12 @@ def test_a_stroke_ends_when_the_hand_falls_well_below_its_peak_speed_despite_jit
     assert 130 < first.obs[-1, 1] < 180
 
 
+def test_a_slow_move_is_not_evaluated(synth):
+    slow = synth.trajectory([REST, ("move", 1.0, (0, 100, 0)), ("hold", 0.5)])  # 188 mm/s peak
+    assert synth.feed(Segmenter(), slow) == []
+    assert finals(synth.feed(Segmenter(SegmenterConfig(min_peak_speed_mm_s=50.0)), slow))
+
+
 def test_a_still_hand_with_tremor_never_starts_a_stroke(synth):
     still = synth.trajectory([("hold", 6.0)], tremor=1.5, seed=3)
     assert synth.feed(Segmenter(), still) == []
@@ -180,8 +186,8 @@ def test_invalid_settings_name_the_fix():
 def test_a_much_faster_move_back_after_an_unsure_gesture_is_reported(synth):
     # The first move was slow (a preparation the classifier half took for a gesture); the
     # second, much faster, is the real stroke.
-    traj = synth.trajectory([REST, ("move", 1.2, (0, -120, 0)), ("hold", 0.3),
-                             ("move", 0.3, (0, 160, 0)), ("hold", 0.5)])
+    traj = synth.trajectory([REST, ("move", 0.7, (0, -120, 0)), ("hold", 0.3),
+                             ("move", 0.2, (0, 160, 0)), ("hold", 0.5)])
     windows = synth.feed(Segmenter(), traj)
     kept = reported_windows(windows, classify=lambda w: 0.6)
     assert any(w.final and w.obs[-1, 1] > 140 for w in kept)
