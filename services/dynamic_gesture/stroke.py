@@ -33,8 +33,8 @@ Segmentation, per hand id (the paper's strokes, found where real people make the
 - while it runs, a window is evaluated every ``eval_period_s`` once it has ``min_samples``
   samples, and once more at its end (``final``);
 - a hand that disappears (or is not seen for ``max_gap_s``) ends its stroke with what was seen
-  (a long swipe may leave the sensor's field); the move that takes a resting hand out of the
-  field is cut the same way and is classified, normally as "no gesture";
+  (a long swipe may leave the sensor's field); a move mostly towards the person (+z) is held
+  back while it runs and dropped if the hand is lost on its way: it is the hand leaving;
 - after a stroke the hand must be slow again (for ``rest_s``, counted from the end of the
   stroke's slow hold) before the next one, except after a turn back;
 - a window that has not moved ``min_extent_mm`` from its start is a twitch, and one that
@@ -55,6 +55,7 @@ import numpy as np
 
 from cbgo.errors import ConfigError
 
+EXIT_SHARE = 0.7  # a lost stroke going this much towards the person is the hand leaving
 REVERSE_MIN_MM = 20.0  # both moves must go this far in space for a spatial reversal to count
 ONSET_S = 0.3  # how far back a stroke's start may be placed into the slow motion before it
 GESTURE_P = 0.5  # a reported window whose top gesture is this probable is a gesture
@@ -510,12 +511,26 @@ class Segmenter:
         return window if self._worth_evaluating(window) else None
 
     def _worth_evaluating(self, window: Window) -> bool:
-        """Whether a window is more than a twitch and faster than a slow move."""
+        """Whether a window is more than a twitch, faster than a slow move and no exit."""
         c = self.config
         moved = float(np.linalg.norm(window.obs, axis=1).max()) >= c.min_extent_mm
         fast = (window.peak_mm_s >= c.min_peak_speed_mm_s
                 or window.peak_roll_deg_s >= c.min_peak_roll_deg_s)
-        return moved and fast
+        return moved and fast and not self._exit(window)
+
+    @staticmethod
+    def _exit(window: Window) -> bool:
+        """Whether a window may be the hand leaving the field towards the person.
+
+        The usual way out of a sensor's field, and no default gesture goes mostly along
+        depth: such a window is held back while its stroke runs and dropped if the hand is
+        lost on its way; a stroke along depth that ends in view (a gesture taught by a user)
+        is evaluated at its end.
+        """
+        if window.final and window.ended != "lost":
+            return False
+        delta = window.obs[-1, :3] - window.obs[0, :3]
+        return bool(delta[2] > 0 and delta[2] > EXIT_SHARE * np.linalg.norm(delta))
 
     def _window(self, track: _Track, samples: list[np.ndarray], final: bool,
                 reason: str = "") -> Window:

@@ -192,7 +192,8 @@ class SimulatedUser:
         centre = CENTRE_MM + rng.normal(0, style.stroke_spread_mm, 3)  # wherever the hand is
         rest = style.rest_s * rng.uniform(0.0, 1.0)  # often next to no rest at all
         if step.gesture == "rotate":
-            builder.move_to(centre, 0.35 / style.speed, "return")
+            distance = float(np.linalg.norm(centre - builder.position))
+            builder.move_to(centre, max(0.3, distance / rng.uniform(60.0, 100.0)), "return")
             builder.hold(max(rest, 0.05), "prepare")
             # roll > 0 raises the thumb side on either hand (the model keeps anatomy).
             builder.roll_to(np.radians(step.angle_deg), 0.6 / style.speed, "stroke", "rotate")
