@@ -51,10 +51,10 @@ P_REPORT = 0.5
 MOVE_S, MOVE_MM_S, HOLD_S, LEAVE_S = 0.6, 100.0, 0.4, 0.6
 
 
-def pick_trials(root: Path, split: str, per_class: int, seed: int) -> list[shrec.Sequence]:
+def pick_trials(sequences: list[shrec.Sequence], per_class: int, seed: int
+                ) -> list[shrec.Sequence]:
     """Returns `per_class` sequences of each swipe and of the other gestures, people mixed."""
     rng = np.random.default_rng(seed)
-    sequences = shrec.read_split(root, split)
     out = []
     for gestures in [[g] for g in shrec.SWIPES] + [list(OTHER)]:
         pool = [s for s in sequences if s.gesture in gestures]
@@ -236,12 +236,13 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
     if split == "test":
         log("note: the test split's people are reserved for acceptance checks; never tune on "
             "these figures")
-    trials = pick_trials(root, split, per_class, seed)
-    people = sorted({s.person for s in shrec.read_split(root, split)})
+    sequences = shrec.read_split(root, split)
+    trials = pick_trials(sequences, per_class, seed)
+    people = sorted({s.person for s in sequences})
     rng = np.random.default_rng(seed + 1)
     stream_sets = []
     for person in rng.choice(people, min(streams, len(people)), replace=False):
-        own = [s for s in shrec.read_split(root, split) if s.person == person
+        own = [s for s in sequences if s.person == person
                and (s.gesture in shrec.SWIPES or s.gesture in OTHER)]
         stream_sets.append([own[i] for i in rng.permutation(len(own))[:10]])
     with tempfile.TemporaryDirectory() as tmp, Stack(Path(tmp)) as stack:

@@ -112,7 +112,7 @@ def labelled_features(classifier: Classifier, users: list[simdata.UserData],
         for lw in user.windows:
             if lw.window.final or not finals_only:
                 w = lw.window
-                feats.append(classifier.features(w.obs, w.final, w.pose_change))
+                feats.append(classifier.window_features(w))
                 labels.append(index.get(lw.truth, index[NONE]))
     return feats, labels
 
