@@ -141,22 +141,26 @@ class EpisodeBuilder:
                 if self.evidence.is_gesture(self.labels.get((seq, s.side), "none"))]
 
     def _window_for(self, gestures: tuple[str, ...]) -> tuple[Window, str] | None:
-        """The stroke window of a triggered gesture of `gestures`, else the most confident one.
+        """The stroke window of a gesture of `gestures`: the triggered one's, or any's.
 
-        A dynamic classifier may evaluate growing windows of one stroke (same start): the
-        longest of them covers the whole stroke.
+        Of the windows whose most probable gesture is a triggered one of `gestures` (any of
+        `gestures` when none triggered), the most confident stroke's: a pose released just
+        before a rotate rolls the palm too, and may trigger first, but is less rotate-like.
+        A dynamic classifier evaluates growing windows of one stroke (same start): the longest
+        of them covers the whole stroke.
         """
-        for trig in self.evidence.triggers:
-            if trig.gesture in gestures and trig.window is not None:
-                same = [w for w in self.windows if w.side == trig.side and w.t0 == trig.window[0]]
-                if same:
-                    return max(same, key=lambda w: w.t1 - w.t0), trig.gesture
+        triggered = {t.gesture for t in self.evidence.triggers
+                     if t.gesture in gestures and t.window is not None}
+        wanted = triggered or set(gestures)
         best = None
         for w in self.windows:
             top = max(w.probs, key=w.probs.get)
-            if top in gestures and (best is None or w.probs[top] > best[0].probs[best[1]]):
+            if top in wanted and (best is None or w.probs[top] > best[0].probs[best[1]]):
                 best = (w, top)
-        return best
+        if best is None:
+            return None
+        stroke = [w for w in self.windows if w.side == best[0].side and w.t0 == best[0].t0]
+        return max(stroke, key=lambda w: w.t1 - w.t0), best[1]
 
     def _in_window(self, w: Window) -> list[HandSample]:
         inside = [s for _, (ts, samples) in self.frames.items() if w.t0 <= ts <= w.t1

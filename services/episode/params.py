@@ -8,7 +8,8 @@ the episode these functions turn the samples into the summary's ``params``:
 - ``distance`` (m): the thumb–index tip distance, median over the frames the static classifier
   labelled ``pinch`` (the gesture for showing a size); without pinch frames, over the frames
   labelled with any static gesture (a held pose); without static labels it is left out.
-- ``angle_deg``: the palm roll of a ``rotate`` stroke: over the frames of the rotate window, the
+- ``angle_deg``: the palm roll of a ``rotate`` stroke (the most confident one, see
+  `EpisodeBuilder._window_for`): over the frames of the rotate window, the
   roll (signed angle of the palm normal about the hand direction, relative to the window's
   first frame) of largest magnitude. Positive raises the thumb side, on either hand (a right
   hand rolling anticlockwise as its owner sees it from behind).

@@ -233,6 +233,39 @@ def test_params_carry_the_pinch_distance(drive):
     assert d.summaries[0]["params"]["distance"] == pytest.approx(0.025)
 
 
+def rolled_hand(deg):
+    """An open hand whose palm is rolled by `deg` about its direction."""
+    hand = open_hand()
+    n, axis = np.array(hand["palm_normal"]), np.array(hand["direction"])
+    a = np.radians(deg)
+    rolled = n * np.cos(a) + np.cross(axis, n) * np.sin(a) + axis * (axis @ n) * (1 - np.cos(a))
+    hand["palm_normal"] = rolled.tolist()
+    return hand
+
+
+def roll(d, start_deg, end_deg, seconds):
+    """Frames rolling the palm from start_deg to end_deg; returns (t_start, t_end)."""
+    t0, steps = d.now, round(seconds / d.period)
+    for i in range(1, steps + 1):
+        d.frame([rolled_hand(start_deg + (end_deg - start_deg) * i / steps)])
+    return t0, d.now
+
+
+def test_the_rotate_angle_comes_from_the_most_confident_rotate_stroke(drive):
+    d = drive()
+    d.hold(0.2)
+    release = roll(d, 0.0, 60.0, 0.3)  # a pose released rolls the palm, a less sure rotate
+    d.dynamic("rotate", *release, p=0.93)
+    d.hold(0.2, hand=rolled_hand(60.0))
+    rotate = roll(d, 60.0, 150.0, 0.5)
+    d.dynamic("rotate", *rotate, p=0.99)
+    d.hold(0.2, hand=rolled_hand(150.0))
+    d.empty(0.3)
+    (summary,) = d.summaries
+    assert [t["gesture"] for t in summary["triggers"]] == ["rotate"]
+    assert abs(summary["params"]["angle_deg"]) == pytest.approx(90, abs=3)
+
+
 def test_the_user_is_the_last_one_announced_else_the_default(drive):
     d = drive(user="ops")
     d.hold(0.2)
