@@ -12,6 +12,7 @@ import time
 from typing import Any
 
 from cbgo.wire import BONE_TYPES, FINGER_TYPES, SCHEMA_VERSION, STATIC_GESTURES
+from cbgo.world.workspace import workspace_info
 
 # Bone lengths (mm) of an adult hand, metacarpal to distal; the thumb's metacarpal is zero
 # length, as in the Leap SDK.
@@ -136,6 +137,9 @@ def _builders(ts: float) -> dict[tuple[str, str], Any]:
         ("sim/render", "query"): {"v": v, "camera": "front", "width": 640, "height": 480},
         ("sim/render", "reply"): {"v": v, "ok": True, "error": None,
                                   "png": b"\x89PNG\r\n\x1a\n..."},
+        ("sim/info", "query"): {"v": v},
+        ("sim/info", "reply"): {"v": v, "ok": True, "error": None, "robot": "mujoco-sim",
+                                "workspace": workspace_info()},
     }
 
 

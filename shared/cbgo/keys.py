@@ -53,13 +53,14 @@ ROBOT_STOP = Topic("robot/stop", express=True)
 PLAN_STATUS = Topic("plan/status")
 SIM_RESET = Topic("sim/reset", query=True)
 SIM_RENDER = Topic("sim/render", query=True)
+SIM_INFO = Topic("sim/info", query=True)
 
 TOPICS: dict[str, Topic] = {
     t.suffix: t
     for t in (
         HANDS_FRAME, GAZE, USER, GESTURES_STATIC, GESTURES_DYNAMIC, EPISODE_EVENT,
         EPISODE_SUMMARY, SCENE_STATE, INTENT, INTENT_INFER, INTENT_FEEDBACK, ROBOT_ACT,
-        ROBOT_STATE, ROBOT_STOP, PLAN_STATUS, SIM_RESET, SIM_RENDER,
+        ROBOT_STATE, ROBOT_STOP, PLAN_STATUS, SIM_RESET, SIM_RENDER, SIM_INFO,
     )
 }
 

@@ -524,6 +524,20 @@ SIM_RENDER_QUERY = Obj({"v": V}, optional={"camera": NAME, "width": Int(16, 4096
 SIM_RENDER_REPLY = Obj({"v": V, "ok": Bool(), "error": Nullable(Str(nonempty=False))},
                        optional={"png": Bytes()}, rules=(_error_when_not_ok,))
 
+RANGE = ListOf(Num(), 2, 2)
+SIZE_RANGE = Obj({"min": Num(lo=0.0), "max": Num(lo=0.0), "default": Num(lo=0.0)})
+WORKSPACE = Obj({
+    "grid": Obj({"shape": ListOf(Int(lo=1), 3, 3), "origin": POS, "step": POS}),
+    "columns_x": ListOf(Num(), 1), "columns_y": ListOf(Num(), 1), "levels_z": ListOf(Num(), 1),
+    "table_area": Obj({"x": RANGE, "y": RANGE}),
+    "sizes": MapOf(SIZE_RANGE), "drawer_tray_offset": Num(lo=0.0),
+    "drawer_capacity": Int(lo=0), "max_stack": Int(lo=1),
+})
+SIM_INFO_QUERY = Obj({"v": V})
+SIM_INFO_REPLY = Obj({"v": V, "ok": Bool(), "error": Nullable(Str(nonempty=False)),
+                      "robot": NAME, "workspace": Nullable(WORKSPACE)},
+                     rules=(_error_when_not_ok,))
+
 PLAN_STEP = Obj({"action": NAME, "object": Nullable(NAME), "params": PARAMS,
                  "state": Str(("pending", "running", "done", "failed"))})
 PLAN_STATUS = Obj({
@@ -551,11 +565,11 @@ SCHEMAS: dict[str, Spec | None] = {
 }
 QUERY_SCHEMAS: dict[str, Spec] = {
     "intent/infer": INTENT_INFER_QUERY, "robot/act": ROBOT_ACT_QUERY,
-    "sim/reset": SIM_RESET_QUERY, "sim/render": SIM_RENDER_QUERY,
+    "sim/reset": SIM_RESET_QUERY, "sim/render": SIM_RENDER_QUERY, "sim/info": SIM_INFO_QUERY,
 }
 REPLY_SCHEMAS: dict[str, Spec] = {
     "intent/infer": INTENT, "robot/act": ROBOT_ACT_REPLY, "sim/reset": SIM_RESET_REPLY,
-    "sim/render": SIM_RENDER_REPLY,
+    "sim/render": SIM_RENDER_REPLY, "sim/info": SIM_INFO_REPLY,
 }
 MAX_BYTES_OVERRIDES = {"sim/render": MAX_BYTES_RENDER}
 

@@ -5,7 +5,11 @@
 - `cbgo.world.actions`: preconditions (`failures`, `check`, `feasible`, `candidates`) and
   symbolic effects (`apply`) of the eleven actions;
 - `cbgo.world.generate`: random valid scenes as the paper samples them (`random_scene`);
-- `cbgo.world.files`: scene files in JSON or YAML (`read_scene_file`).
+- `cbgo.world.files`: scene files in JSON or YAML (`read_scene_file`);
+- `cbgo.world.workspace`: the workspace of the contract (`workspace_info`, the ``cbgo/sim/info``
+  answer) and whether a scene fits in it (`workspace_problems`; `reset_refusal`, the
+  judgement of ``cbgo/sim/reset``);
+- `cbgo.world.consistency`: whether a reported scene can be the truth (`check_consistent`).
 
 Pure Python, NumPy and YAML: no Zenoh, no torch.
 """
@@ -21,13 +25,21 @@ from cbgo.world.actions import (
     failures,
     feasible,
 )
+from cbgo.world.consistency import check_consistent
 from cbgo.world.files import read_scene_file
 from cbgo.world.generate import random_scene
 from cbgo.world.grid import DEFAULT_GRID, Grid
 from cbgo.world.scene import Robot, Scene, SceneObject
+from cbgo.world.workspace import (
+    reset_refusal,
+    table_area,
+    workspace_info,
+    workspace_problems,
+)
 
 __all__ = [
     "DEFAULT_GRID", "MOVES", "OBJECT_AGNOSTIC", "Failure", "Grid", "InfeasibleAction", "Robot",
-    "Scene", "SceneObject", "apply", "candidates", "check", "failures", "feasible", "random_scene",
-    "read_scene_file",
+    "Scene", "SceneObject", "apply", "candidates", "check", "check_consistent", "failures",
+    "feasible", "random_scene", "read_scene_file", "reset_refusal", "table_area",
+    "workspace_info", "workspace_problems",
 ]

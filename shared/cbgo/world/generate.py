@@ -7,7 +7,8 @@
    back row (farthest from the robot) and keep the column in front of them free for their
    tray; an object landing on an occupied column is stacked on its top object if that is a box
    or a drawer and the tower stays within `MAX_STACK`, else it is drawn again ("replaced").
-   Table positions are perturbed by up to ±`jitter` m.
+   Table positions are perturbed by up to ±`jitter` m, and by no more than the room their cell
+   leaves around them (so that neighbouring drawer cabinets never overlap).
 3. Containment and stacking: each drawer, with probability `p_contain`, takes a free cup or box
    inside; each free cup or box, with probability `p_stack`, moves onto a free box or drawer.
 4. Random states: each drawer open, each cup full, with probability 1/2.
@@ -110,7 +111,10 @@ def _place(scene: Scene, rng: np.random.Generator, grid: Grid,
             obj.on = tower[-1]
         else:
             x, y = grid.column_xy(column)
-            xy[obj.name] = (x + rng.uniform(-jitter, jitter), y + rng.uniform(-jitter, jitter))
+            # No more than the room its cell leaves: a 0.11 m cabinet in a 0.12 m cell would
+            # otherwise push into its neighbour (`cbgo.world.workspace` refuses overlaps).
+            j = min(jitter, max(0.0, (min(grid.step[:2]) - obj.size) / 2))
+            xy[obj.name] = (x + rng.uniform(-j, j), y + rng.uniform(-j, j))
         tower.append(obj.name)
     return xy
 

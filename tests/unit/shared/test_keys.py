@@ -197,7 +197,8 @@ def test_hand_frames_are_dropped_under_congestion_and_sent_express():
 
 @pytest.mark.parametrize("suffix", ["episode/event", "episode/summary", "intent", "plan/status",
                                     "robot/act", "intent/feedback", "scene/state", "user",
-                                    "robot/stop", "intent/infer", "sim/reset", "sim/render"])
+                                    "robot/stop", "intent/infer", "sim/reset", "sim/render",
+                                    "sim/info"])
 def test_events_summaries_intents_plans_and_actions_are_reliable(suffix):
     assert keys.TOPICS[suffix].reliable is True
 
@@ -207,17 +208,17 @@ def test_high_rate_streams_are_droppable(suffix):
     assert keys.TOPICS[suffix].reliable is False
 
 
-def test_exactly_the_four_query_keys_are_answered_by_queryables():
+def test_exactly_the_five_query_keys_are_answered_by_queryables():
     assert {s for s, t in keys.TOPICS.items() if t.query} == {
-        "intent/infer", "robot/act", "sim/reset", "sim/render"}
+        "intent/infer", "robot/act", "sim/reset", "sim/render", "sim/info"}
 
 
 def test_a_stop_is_sent_express_and_reliably():
     assert keys.ROBOT_STOP.express and keys.ROBOT_STOP.reliable
 
 
-def test_the_topic_table_holds_the_seventeen_contract_keys_by_suffix():
-    assert len(keys.TOPICS) == 17
+def test_the_topic_table_holds_the_eighteen_contract_keys_by_suffix():
+    assert len(keys.TOPICS) == 18
     assert all(suffix == topic.suffix for suffix, topic in keys.TOPICS.items())
 
 
