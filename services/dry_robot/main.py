@@ -9,8 +9,12 @@ Behaviour (the contract is services/dry_robot/README.md):
   ``ok: false, error: "stopped"`` and no effect (the world model has no half-done actions);
 - publishes ``cbgo/scene/state`` and ``cbgo/robot/state`` every ``--period-s`` and after every
   change (robot/state also when an action starts);
-- answers ``cbgo/sim/reset`` (seed or scene) and refuses ``cbgo/sim/render`` with an error
-  reply: there is nothing to render.
+- answers ``cbgo/sim/reset`` (seed or scene; a scene the world model's rules or the workspace
+  refuse, `cbgo.world.reset_refusal`, is answered ``ok: false`` with the reason and the world
+  stays), ``cbgo/sim/info`` (the workspace, `cbgo.world.workspace_info`, as mujoco-sim answers
+  it), and refuses ``cbgo/sim/render`` with an error reply: there is nothing to render;
+- after a failed action the scene is checked (`cbgo.world.check_consistent`) before it is
+  published; a contradiction is named in the reply's error and counted.
 """
 
 from __future__ import annotations
@@ -25,7 +29,14 @@ from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.runtime import Service, main_for
 from cbgo.services.dry_robot.robot import SymbolicRobot
-from cbgo.world import Scene, random_scene, read_scene_file
+from cbgo.world import (
+    Scene,
+    check_consistent,
+    random_scene,
+    read_scene_file,
+    reset_refusal,
+    workspace_info,
+)
 
 NO_RENDERER = ("dry-robot has no renderer; it is the symbolic world model without physics or "
                "images: run mujoco-sim for cbgo/sim/render, or read the world on "
@@ -67,15 +78,16 @@ def consistent_scene(body: dict) -> Scene:
     """Returns the scene of a contract scene body, settled.
 
     Raises:
-        SceneError: the scene breaks the world model's rules (every problem listed).
+        SceneError: the scene breaks the world model's rules or does not fit in the
+            workspace (every problem listed, `cbgo.world.reset_refusal`).
     """
     try:
         scene = Scene.from_dict(body)
     except (KeyError, TypeError, ValueError) as e:
         raise SceneError(f"not a scene: {type(e).__name__}: {e}") from None
-    problems = scene.problems()
-    if problems:
-        raise SceneError("inconsistent scene: " + "; ".join(problems))
+    reason = reset_refusal(scene)
+    if reason is not None:
+        raise SceneError(reason)
     scene.settle()
     return scene
 
@@ -98,7 +110,7 @@ class DryRobot(Service):
         self.start_scene: int | dict = settings.seed
         self.source = ""
         self.stops = 0
-        self.counts = {"actions": 0, "ok": 0, "refused": 0, "stopped": 0}
+        self.counts = {"actions": 0, "ok": 0, "refused": 0, "stopped": 0, "inconsistent": 0}
 
     def setup(self, ctx) -> None:
         """Loads the start scene, then declares stop, outputs, queryables and the state timer."""
@@ -114,6 +126,7 @@ class DryRobot(Service):
         ctx.queryable(keys.ROBOT_ACT, self.on_act)
         ctx.queryable(keys.SIM_RESET, self.on_reset)
         ctx.queryable(keys.SIM_RENDER, self.on_render)
+        ctx.queryable(keys.SIM_INFO, self.on_info)
         ctx.every(self.settings.period_s, self.state_outputs)
 
     def status_extra(self) -> dict:
@@ -157,6 +170,8 @@ class DryRobot(Service):
         self.stop.clear()  # a stop concerns the action under way, not the next one
         t0 = time.perf_counter()
         reply = self._execute(action, obj, params)
+        if not reply["ok"]:
+            reply = self._checked(reply)
         self._count(reply)
         self.ctx.publish(keys.SCENE_STATE, reply["scene"])
         self.ctx.publish(keys.ROBOT_STATE, self.robot.state_message())
@@ -172,6 +187,20 @@ class DryRobot(Service):
         if self.stop.wait(self.settings.action_s):
             return self.robot.act_reply(False, "stopped", time.monotonic() - t0)
         return self.robot.act(action, obj, params, self.settings.action_s)
+
+    def _checked(self, reply: dict) -> dict:
+        """Returns a failure's reply, its error naming any contradiction in the scene after it.
+
+        The world model keeps its scene consistent, so this finds nothing unless a fault (or a
+        test's scripted robot) broke it; then the planner is told, rather than misled.
+        """
+        problems = check_consistent(reply["scene"])
+        if not problems:
+            return reply
+        self.counts["inconsistent"] += 1
+        self.ctx.log.error("inconsistent scene after %s: %s", reply["error"], "; ".join(problems))
+        return {**reply, "error": f"{reply['error']}; the scene after it is inconsistent: "
+                                  + "; ".join(problems)}
 
     def _count(self, reply: dict) -> None:
         self.counts["actions"] += 1
@@ -195,6 +224,11 @@ class DryRobot(Service):
         self.ctx.publish(keys.SCENE_STATE, scene)
         self.ctx.publish(keys.ROBOT_STATE, self.robot.state_message())
         return {"v": wire.SCHEMA_VERSION, "ok": True, "error": None, "scene": scene}
+
+    def on_info(self, _query: dict) -> dict:
+        """sim/info: the workspace, as every robot of cbgo answers it."""
+        return {"v": wire.SCHEMA_VERSION, "ok": True, "error": None, "robot": self.name,
+                "workspace": workspace_info()}
 
     def on_render(self, _query: dict) -> dict:
         """sim/render: an error reply, always."""

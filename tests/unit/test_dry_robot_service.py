@@ -11,7 +11,7 @@ from cbgo.errors import ConfigError
 from cbgo.services.dry_robot.main import NO_RENDERER, DryRobot, DryRobotSettings
 from cbgo.services.dry_robot.robot import SymbolicRobot
 from cbgo.testing import FakeBus
-from cbgo.world import Scene, random_scene
+from cbgo.world import Scene, random_scene, workspace_info
 
 PAPER_SCENE = {  # the paper's example: cup1 in the gripper, drawer1 closed
     "objects": [
@@ -63,7 +63,7 @@ def test_a_feasible_act_applies_its_effects_and_publishes_the_scene_after(bus):
     assert reply["ok"] and objects(reply["scene"])["cup1"]["inside"] == "drawer1"
     assert objects(reply["scene"])["drawer1"]["contains"] == ["cup1"]
     assert bus.service.status_extra()["actions"] == {"actions": 4, "ok": 4, "refused": 0,
-                                                     "stopped": 0}
+                                                     "stopped": 0, "inconsistent": 0}
 
 
 def test_an_infeasible_act_is_refused_with_the_world_models_reason_and_counted(bus):
@@ -184,3 +184,67 @@ def test_the_robot_class_executes_at_once_and_never_mutates_the_scene_it_was_giv
     assert robot.scene.robot.holding is None and scene.robot.holding == "cup1"
     assert robot.refusal("place", None, {}) == "refused: the gripper holds nothing"
     assert robot.gripper_width() == 0.08  # open after letting go
+
+
+def test_reset_with_an_object_off_the_table_area_is_refused_with_where_it_is_and_the_workspace(
+        bus):
+    far = {"objects": [PAPER_SCENE["objects"][0],
+                       dict(PAPER_SCENE["objects"][1], position=[0.6, 0.3, 0.055])],
+           "robot": PAPER_SCENE["robot"]}
+    ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "scene": far})
+    assert ok and reply["ok"] is False and reply["scene"] is None
+    assert reply["error"].startswith("outside the workspace: drawer1 at (0.60, 0.30)")
+    assert "x 0.30..0.70, y -0.20..0.20" in reply["error"]
+    assert act(bus, "place")["ok"]  # the world stayed the paper scene: cup1 is held
+
+
+def test_reset_with_a_drawer_whose_open_tray_leaves_the_reach_is_refused(bus):
+    near = {"objects": [dict(PAPER_SCENE["objects"][1], position=[0.32, 0.06, 0.055])]}
+    ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "scene": near})
+    assert ok and reply["ok"] is False
+    assert "drawer1 at (0.32, 0.06) would open its tray to x 0.24" in reply["error"]
+    near["objects"][0]["position"] = [0.44, 0.06, 0.055]  # one column further: it fits
+    ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "scene": near})
+    assert ok and reply["ok"], reply
+
+
+def test_info_answers_the_workspace_of_the_world_model(bus):
+    ok, reply = bus.query(keys.SIM_INFO, {"v": 1})
+    assert ok, reply
+    wire.validate(reply, wire.SIM_INFO_REPLY, "cbgo/sim/info")
+    assert reply["robot"] == "dry-robot" and reply["workspace"] == workspace_info()
+    assert reply["workspace"]["table_area"] == {"x": [0.3, 0.7], "y": [-0.2, 0.2]}
+
+
+class _Contradicting(SymbolicRobot):
+    """A scripted fault: a stopped place leaves cup1 held and inside drawer1 at once."""
+
+    def act_reply(self, ok, error, duration_s=0.0):
+        if error == "stopped":
+            self.scene.get("cup1").inside = "drawer1"
+        return super().act_reply(ok, error, duration_s)
+
+
+class _FaultyDryRobot(DryRobot):
+    def new_robot(self, scene):
+        return _Contradicting(scene)
+
+
+def test_a_failure_that_leaves_a_contradiction_names_it_in_the_reply_and_counts_it():
+    bus = FakeBus(_FaultyDryRobot(DryRobotSettings(action_s=60.0)))
+    bus.query(keys.SIM_RESET, {"v": 1, "scene": PAPER_SCENE})
+    replies = []
+    worker = threading.Thread(target=lambda: replies.append(bus.query(
+        keys.ROBOT_ACT, {"v": 1, "action": "place", "object": None, "params": {}})))
+    worker.start()
+    deadline = time.monotonic() + 10  # a bound on waiting, not a measurement
+    while not any(m["moving"] for m in published(bus, "robot/state")):
+        assert time.monotonic() < deadline, "the action never started"
+        time.sleep(0.01)
+    bus.feed_raw(keys.ROBOT_STOP, b"")
+    worker.join(10)
+    (ok, reply), = replies
+    assert ok and reply["ok"] is False
+    assert reply["error"].startswith("stopped; the scene after it is inconsistent: ")
+    assert "the robot holds cup1, which also rests on or inside another object" in reply["error"]
+    assert bus.service.status_extra()["actions"]["inconsistent"] == 1
