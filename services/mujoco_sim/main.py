@@ -9,7 +9,12 @@ Behaviour (the contract is services/mujoco_sim/README.md):
   they are published from inside its control loop (the event loop is busy with it);
 - ``cbgo/robot/stop`` (any payload) sets a flag that the control loop checks every tick: the
   running action ends with ``ok: false, error: "stopped"`` and the arm holds its position;
-- answers ``cbgo/sim/reset`` (seed or scene -> settled scene) and ``cbgo/sim/render`` (PNG);
+- answers ``cbgo/sim/reset`` (seed or scene -> settled scene; a scene outside the workspace or
+  against the world model's rules is refused, ``cbgo.world.reset_refusal``), ``cbgo/sim/render``
+  (PNG) and ``cbgo/sim/info`` (the workspace, ``cbgo.world.workspace_info``);
+- after a failed action, loose objects come to rest and the scene is checked
+  (``cbgo.world.check_consistent``) before it is published; a contradiction is named in the
+  reply's error;
 - physics runs as fast as it can, or paced at ``--realtime`` times real time.
 """
 
@@ -29,7 +34,7 @@ from cbgo.services.mujoco_sim.build import CAMERAS
 from cbgo.services.mujoco_sim.engine import Sim
 from cbgo.services.mujoco_sim.render import Camera, RenderError
 from cbgo.services.mujoco_sim.skills import Robot
-from cbgo.world import read_scene_file
+from cbgo.world import check_consistent, read_scene_file, workspace_info
 
 
 @dataclass
@@ -85,7 +90,7 @@ class MujocoSim(Service):
         self.robot: Robot | None = None
         self.source = ""
         self.seq = {"scene": 0, "robot": 0}
-        self.counts = {"actions": 0, "ok": 0, "refused": 0, "stopped": 0}
+        self.counts = {"actions": 0, "ok": 0, "refused": 0, "stopped": 0, "inconsistent": 0}
         self.last_compile_s = 0.0
         self._due = {"scene": 0.0, "robot": 0.0}
         self._pace: tuple[float, float] | None = None
@@ -104,6 +109,7 @@ class MujocoSim(Service):
         ctx.queryable(keys.ROBOT_ACT, self.on_act)
         ctx.queryable(keys.SIM_RESET, self.on_reset)
         ctx.queryable(keys.SIM_RENDER, self.on_render)
+        ctx.queryable(keys.SIM_INFO, self.on_info)
         ctx.every(1.0 / s.state_rate_hz, lambda: [self.scene_output()])
         ctx.every(1.0 / s.robot_rate_hz, lambda: [self.robot_output()])
 
@@ -176,13 +182,29 @@ class MujocoSim(Service):
         self.counts["refused"] += outcome.refused
         self.counts["stopped"] += outcome.error == "stopped"
         topic, scene = self.scene_output()
+        error = outcome.error
+        if not outcome.ok and not outcome.refused:
+            error = self._checked(error, scene)
         self.ctx.publish(topic, scene)
         self.ctx.log.info("%s(%s): %s in %.2f s sim, %.2f s wall", query["action"],
-                          query.get("object") or "", outcome.error or "ok", outcome.sim_s,
+                          query.get("object") or "", error or "ok", outcome.sim_s,
                           time.perf_counter() - t0)
-        return {"v": wire.SCHEMA_VERSION, "ok": outcome.ok, "error": outcome.error,
+        return {"v": wire.SCHEMA_VERSION, "ok": outcome.ok, "error": error,
                 "duration_s": round(outcome.sim_s, 4),
                 "wall_s": round(time.perf_counter() - t0, 4), "scene": scene}
+
+    def _checked(self, error: str, scene: dict) -> str:
+        """Returns a failure's error, naming every contradiction in the scene read after it.
+
+        The observation is built to be consistent (`observe`); a contradiction left is a gap
+        in it, and the planner must hear of it rather than replan on a wrong world.
+        """
+        problems = check_consistent(scene)
+        if not problems:
+            return error
+        self.counts["inconsistent"] += 1
+        self.ctx.log.error("inconsistent scene after %s: %s", error, "; ".join(problems))
+        return f"{error}; the scene after it is inconsistent: " + "; ".join(problems)
 
     def on_reset(self, query: dict) -> dict:
         """sim/reset: a random scene from a seed, or exactly the given scene, settled."""
@@ -198,6 +220,11 @@ class MujocoSim(Service):
         self.ctx.publish(topic, scene)
         error = ("after settling: " + "; ".join(problems)) if problems else None
         return {"v": wire.SCHEMA_VERSION, "ok": not problems, "error": error, "scene": scene}
+
+    def on_info(self, _query: dict) -> dict:
+        """sim/info: the workspace, as every robot of cbgo answers it."""
+        return {"v": wire.SCHEMA_VERSION, "ok": True, "error": None, "robot": self.name,
+                "workspace": workspace_info()}
 
     def on_render(self, query: dict) -> dict:
         """sim/render: a PNG of the world from a named camera."""

@@ -6,7 +6,8 @@ Everything is read from the simulation, nothing is bookkept:
   objects whose centre lies in the drawer's inner box;
 - ``on``: the object under it that it touches (contacts, with a 5 mm geometric fallback for
   resting stacks between contact updates); the table and a drawer's inner bottom give null;
-- ``inside``: the drawer whose inner box holds the object's centre;
+- ``inside``: the drawer whose inner box holds the object's centre, unless the object is held
+  (in the gripper, never also inside); ``contains`` lists exactly the objects inside;
 - ``full``: the cup's liquid state (changed physically, see `engine.Sim.update_liquid`);
 - robot: ``tcp`` from the TCP site, ``holding`` from the grasp weld, ``gripper_open`` when
   nothing is held and the fingers are apart.
@@ -140,8 +141,11 @@ def _on_cabinet_top(sim: Sim, drawer: Item, contact_pos: np.ndarray) -> bool:
 def observe_objects(sim: Sim) -> list[dict]:
     """Returns the contract objects of the scene, read from the physics."""
     objects = []
-    inside = {name: inside_of(sim, name) for name, it in sim.items.items()
-              if it.type != "drawer"}
+    held = sim.holding
+    # A held object is in the gripper, whatever its centre passes through (a failed put_into
+    # leaves it hanging in a drawer's inner box): never held and inside at once.
+    inside = {name: None if name == held else inside_of(sim, name)
+              for name, it in sim.items.items() if it.type != "drawer"}
     for item in sim.items.values():
         obj: dict = {"name": item.name, "type": item.type, "size": item.size}
         if item.type == "drawer":

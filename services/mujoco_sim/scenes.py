@@ -2,7 +2,8 @@
 
 Rules:
 - a scene comes from the world model: `cbgo.world.random_scene(seed)` or a contract scene
-  dict (`cbgo.world.Scene.from_dict`); an inconsistent one (`Scene.problems`) is refused;
+  dict (`cbgo.world.Scene.from_dict`); an inconsistent one (`Scene.problems`), or one outside
+  the workspace (`cbgo.world.workspace_problems`), is refused before anything is built;
 - table objects keep their x/y; stacked objects stand centred on their support (the symbolic
   offset kept up to 1 cm); objects in a drawer stand on its tray, in the part that comes out
   of the cabinet; heights follow from the supports, so nothing starts interpenetrating;
@@ -30,7 +31,7 @@ from cbgo.services.mujoco_sim.plan import (
     grasp_half_width,
     tcp_below_top,
 )
-from cbgo.world import DEFAULT_GRID, Grid, Scene, random_scene
+from cbgo.world import DEFAULT_GRID, Grid, Scene, random_scene, reset_refusal
 
 SETTLE_S = 0.4
 POSITION_TOL = 0.03  # m, x/y of a settled object against its symbolic position
@@ -59,13 +60,14 @@ def load(scene: Scene | dict, grid: Grid = DEFAULT_GRID) -> Loaded:
     """Builds, places and settles a scene.
 
     Raises:
-        SceneError: the scene breaks the world model's rules, or the robot cannot be placed.
+        SceneError: the scene breaks the world model's rules or does not fit in the workspace
+            (`cbgo.world.reset_refusal`), or the robot cannot be placed.
     """
     if isinstance(scene, dict):
         scene = Scene.from_dict(scene)
-    problems = scene.problems()
-    if problems:
-        raise SceneError("inconsistent scene: " + "; ".join(problems))
+    reason = reset_refusal(scene, grid)
+    if reason is not None:  # judged before building: never accepted to fail later
+        raise SceneError(reason)
     scene = scene.copy()
     scene.settle()
     objects = [{"name": o.name, "type": o.type, "size": o.size, "position": list(o.position)}

@@ -9,7 +9,9 @@
    collide (the way of a move blocked, no collision-free pour) is refused, without moving;
 3. executes it with IK-tracked Cartesian motions and real finger contact; a grasp weld is
    switched on only after both fingers were seen touching the object;
-4. verifies the outcome with `checks` and returns an `Outcome` (ok, or the precise failure).
+4. verifies the outcome with `checks` and returns an `Outcome` (ok, or the precise failure);
+   after a failure (not a stop, which answers at once) it lets loose objects come to rest
+   (bounded), so that the scene read next says where a dropped or toppled object lies.
 
 Targets come from the world model where it defines them (the TCP's goal cell of a move, the
 table column of ``place``); physical details (where in a drawer, how to tilt) are decided here.
@@ -171,7 +173,27 @@ class Robot:
             error = str(e)
         finally:
             sim.action, sim.moving = None, False
+        if error not in (None, "stopped"):  # a stop answers at once, the arm held still
+            self.let_world_rest(REST_TIMEOUT_S)
         return Outcome(error is None, error, sim.time - t0)
+
+    def let_world_rest(self, timeout_s: float) -> None:
+        """After a failure: steps the physics until no loose object moves, at most timeout_s.
+
+        A failed action may have dropped or knocked over its load; the scene published after it
+        must say where that lies, not where it was in mid-air. The arm holds where it stopped;
+        the stop flag is not checked (a stop is what may have ended the action).
+        """
+        sim = self.sim
+        bodies = [it.body for it in sim.items.values()
+                  if it.type != "drawer" and it.name != sim.holding]
+        calm = 0
+        for _ in range(max(1, int(timeout_s / motion.tick_dt(sim)))):
+            speed = max((float(np.linalg.norm(sim.data.cvel[b])) for b in bodies), default=0.0)
+            calm = calm + 1 if speed < REST_SPEED else 0
+            if calm >= 5:
+                return
+            sim.settle(motion.tick_dt(sim))
 
     # ------------------------------------------------------------------ planning helpers
 
