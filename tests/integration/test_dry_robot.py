@@ -5,6 +5,7 @@ import sys
 from test_planner import PAPER_SCENE, PAPER_SEQUENCE, intent, reset, steps
 
 from cbgo import keys, wire
+from cbgo.world import workspace_info
 
 CLI = [sys.executable, "-m", "cbgo.cli.main"]
 
@@ -26,10 +27,11 @@ def test_the_paper_example_on_dry_robot_ends_with_the_cup_in_the_drawer(stack):
     cup = next(o for o in after["objects"] if o["name"] == "cup1")
     assert cup["inside"] == "drawer1" and after["robot"]["holding"] is None
     status = stack.status("dry-robot")
-    assert status["actions"] == {"actions": 4, "ok": 4, "refused": 0, "stopped": 0}
+    assert status["actions"] == {"actions": 4, "ok": 4, "refused": 0, "stopped": 0,
+                                 "inconsistent": 0}
 
 
-def test_render_and_an_inconsistent_reset_are_answered_with_reasons(stack):
+def test_render_info_and_resets_it_cannot_execute_in_are_answered_with_reasons(stack):
     stack.start_router()
     stack.start_service("dry-robot")
     stack.wait_alive(["router", "dry-robot"])
@@ -40,6 +42,14 @@ def test_render_and_an_inconsistent_reset_are_answered_with_reasons(stack):
     (ok, reply), = stack.query(stack.keys.of(keys.SIM_RESET), {"v": 1, "scene": bad})
     assert ok and reply["ok"] is False and "box1 stands on 'box1'" in reply["error"]
     wire.validate(reply, wire.SIM_RESET_REPLY, "cbgo/sim/reset")
+    far = {"objects": [{"name": "cup1", "type": "cup", "position": [0.44, 0.3, 0.03],
+                        "size": 0.06}]}
+    (ok, reply), = stack.query(stack.keys.of(keys.SIM_RESET), {"v": 1, "scene": far})
+    assert ok and reply["ok"] is False and reply["scene"] is None
+    assert reply["error"].startswith("outside the workspace: cup1 at (0.44, 0.30)")
+    (ok, reply), = stack.query(stack.keys.of(keys.SIM_INFO), {"v": 1})
+    assert ok and reply["robot"] == "dry-robot", reply
+    assert reply["workspace"] == workspace_info()
 
 
 def test_cbgo_up_with_robot_dry_starts_dry_robot_in_place_of_mujoco_sim(stack):

@@ -139,15 +139,16 @@ def test_the_paper_example_in_mujoco_ends_with_the_cup_in_the_drawer(stack):
 
 @needs_sim
 @pytest.mark.timeout(300)
-def test_an_unreachable_cup_in_mujoco_ends_in_a_clear_failure(stack):
+def test_an_unreachable_cup_in_mujoco_is_refused_at_reset_not_failed_later(stack):
     start(stack, None, "mujoco-sim", timeout=120)
-    plans = stack.collect("plan/status")
     far = {"objects": [{"name": "cup9", "type": "cup", "position": [1.05, 0.0, 0.03],
                         "size": 0.06, "full": True, "on": None, "inside": None}],
            "robot": {"tcp": [0.44, 0.06, 0.26], "gripper_open": True, "holding": None}}
-    reset(stack, far)
-    stack.put("intent", intent("pick_up", "cup9"))
-    end = plans.first(lambda m: m["state"] != "running", timeout=200)
-    assert end["state"] == "failure"
-    assert end["error"].startswith("pick_up(cup9) failed 2 times: "), end["error"]
-    assert steps(end) == [("pick_up", "cup9")]
+    (ok, reply), = stack.query(stack.keys.of(keys.SIM_RESET), {"v": 1, "scene": far},
+                               timeout=60)
+    assert ok and reply["ok"] is False and reply["scene"] is None
+    assert reply["error"].startswith("outside the workspace: cup9 at (1.05, 0.00) is outside "
+                                     "the workspace"), reply["error"]
+    (ok, reply), = stack.query(stack.keys.of(keys.SIM_INFO), {"v": 1})
+    assert ok and reply["robot"] == "mujoco-sim" and reply["workspace"]["table_area"] == {
+        "x": [0.3, 0.7], "y": [-0.2, 0.2]}
