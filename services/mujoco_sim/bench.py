@@ -54,7 +54,7 @@ MAX_DRAWS = 50  # scenes drawn at most for one scene index before giving up
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the benchmark's flags."""
-    parser.add_argument("--scenes", type=int, default=30, help="random scenes [30]")
+    parser.add_argument("--scenes", type=int, default=100, help="random scenes [100]")
     parser.add_argument("--seed", type=int, default=0, help="seed of the scene generator [0]")
     parser.add_argument("--actions", nargs="+", choices=ACTIONS, default=list(ACTIONS),
                         metavar="ACTION", help="action kinds to try [all eleven]")
