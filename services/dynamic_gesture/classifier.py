@@ -240,23 +240,23 @@ def softmax_rows(feats: np.ndarray, theta: np.ndarray) -> np.ndarray:
     return u / u.sum()
 
 
-def _objective(samples: list[np.ndarray], labels: list[int], theta: np.ndarray,
-               ridge: float) -> tuple[float, np.ndarray, np.ndarray]:
-    """Returns the penalised log-likelihood, its gradient and Hessian at θ."""
+def _objective(samples: list[np.ndarray], labels: list[int], weights: np.ndarray,
+               theta: np.ndarray, ridge: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """Returns the weighted, penalised log-likelihood, its gradient and Hessian at θ."""
     value = -0.5 * ridge * float(theta @ theta)
     grad = -ridge * theta
     hess = -ridge * np.eye(len(theta))
-    for feats, y in zip(samples, labels, strict=True):
+    for feats, y, w in zip(samples, labels, weights, strict=True):
         p = softmax_rows(feats, theta)
-        value += float(np.log(max(p[y], 1e-300)))
+        value += w * float(np.log(max(p[y], 1e-300)))
         mean = p @ feats
-        grad += feats[y] - mean
-        hess -= (feats * p[:, None]).T @ feats - np.outer(mean, mean)
+        grad += w * (feats[y] - mean)
+        hess -= w * ((feats * p[:, None]).T @ feats - np.outer(mean, mean))
     return value, grad, hess
 
 
 def fit_calibration(samples: list[np.ndarray], labels: list[int], ridge: float = 1.0,
-                    iterations: int = 100) -> Calibration:
+                    iterations: int = 100, weights=None) -> Calibration:
     """Fits θ by penalised maximum likelihood (damped Newton); the objective is concave.
 
     The ridge keeps θ finite where the calibration windows are separable (most simulated
@@ -267,15 +267,17 @@ def fit_calibration(samples: list[np.ndarray], labels: list[int], ridge: float =
         labels: per window, the index of the true alternative (K_i for none).
         ridge: L2 penalty on θ.
         iterations: Newton steps at most.
+        weights: per window, its weight in the likelihood (None: 1 each).
     """
+    weights = np.ones(len(labels)) if weights is None else np.asarray(weights, dtype=float)
     theta = np.zeros(N_THETA)
-    value, grad, hess = _objective(samples, labels, theta, ridge)
+    value, grad, hess = _objective(samples, labels, weights, theta, ridge)
     for _ in range(iterations):
         step = np.linalg.solve(hess, grad)
         t = 1.0
         while t > 1e-6:  # backtrack until the objective improves
             trial = theta - t * step
-            new = _objective(samples, labels, trial, ridge)
+            new = _objective(samples, labels, weights, trial, ridge)
             if new[0] >= value:
                 break
             t /= 2

@@ -61,6 +61,16 @@ def test_the_slower_return_move_after_a_gesture_is_not_reported(synth):
     assert {w.stroke for w in kept} == {1}
 
 
+def test_the_return_after_an_unsure_gesture_is_not_reported_even_when_it_looks_surer(synth):
+    # Real swipes often come out unsure ("none" a little ahead); their return, never trained
+    # as "none", looks like a sure swipe the other way.
+    traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.4), ("move", 0.9, (0, -160, 0)),
+                             ("hold", 0.5)])
+    windows = synth.feed(Segmenter(), traj)
+    kept = reported_windows(windows, classify=lambda w: 0.35 if w.stroke == 1 else 0.9)
+    assert {w.stroke for w in kept} == {1}
+
+
 def test_a_move_that_reverses_a_non_gesture_is_reported(synth):
     # A slow preparation downwards (classified "none"), then the swipe up.
     traj = synth.trajectory([REST, ("move", 1.0, (0, -80, 0)), ("hold", 0.2), SWIPE_UP,
