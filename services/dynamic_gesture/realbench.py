@@ -100,7 +100,7 @@ class _Player:
         self.subs = [
             session.declare_subscriber(stack.keys.of(keys.GESTURES_DYNAMIC), self._on_dynamic),
             session.declare_subscriber(stack.keys.of(keys.EPISODE_SUMMARY), self._on_summary)]
-        self.seq = 0
+        self.seq, self.hand_id = 0, 0
 
     def _on_dynamic(self, sample) -> None:
         with self.lock:
@@ -111,8 +111,13 @@ class _Player:
             self.summaries.append(wire.decode(sample.payload.to_bytes()))
 
     def play(self, joints: np.ndarray) -> tuple[float, float]:
-        """Plays (n, 22, 3) joints at 30 Hz, then empty frames; returns the ts span."""
-        hands = shrec.to_hands(joints)
+        """Plays (n, 22, 3) joints at 30 Hz, then empty frames; returns the ts span.
+
+        Each play is a new appearance of the hand, with a new tracking id as a real sensor
+        gives it (the service keeps each hand's last gesture to tell its return).
+        """
+        self.hand_id += 1
+        hands = shrec.to_hands(joints, hand_id=self.hand_id)
         t_first = time.time()
         for i, hand in enumerate([*hands, *([None] * int(LEAVE_S * shrec.RATE_HZ))]):
             due = t_first + i / shrec.RATE_HZ
