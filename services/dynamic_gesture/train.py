@@ -16,8 +16,9 @@
    evaluate (mid-stroke and final) of the calibration users — other simulated people — and of
    the real people, gestures and non-gestures alike, so the probabilities (``none`` included)
    are calibrated, to a prior in which the "none" windows weigh a quarter as much as the
-   gestures' (`NONE_WEIGHT`). With ``--folds N`` the real people are also split into N groups first, and
-   each group is scored by a library learned without it: the leave-people-out figures.
+   gestures' (`NONE_WEIGHT`). With ``--folds N`` the real people are also split into N
+   groups first, and each group is scored by a library learned without it: the
+   leave-people-out figures.
 5. The library goes to ``<data dir>/models/dynamic-gesture.json`` (which the service then uses
    in place of the shipped one) or ``--out``, with a summary of the run.
 
