@@ -131,7 +131,7 @@ def list_gestures() -> list[dict]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds this module's flags (the ``cbgo gestures record`` verb has its own)."""
-    from cbgo.cli.common import add_network_arguments
+    from cbgo.client import add_network_arguments
 
     parser.add_argument("name", help="the new gesture's name, e.g. swipe_diag")
     parser.add_argument("--takes", type=int, default=DEFAULT_TAKES,
@@ -212,15 +212,14 @@ def _live(recorder: TakeRecorder, session, prefix_keys, timeout: float) -> str |
 
 
 def _reload(session, prefix_keys) -> None:
+    from cbgo.client import query_all
+
     key = prefix_keys.ctl("dynamic-gesture", "reload")
-    replies = list(session.get(key, payload=wire.encode({"v": wire.SCHEMA_VERSION}),
-                               timeout=5.0))
-    for reply in replies:
-        if reply.ok is not None:
-            answer = wire.decode(reply.ok.payload.to_bytes())
+    for ok, answer in query_all(session, key, {"v": wire.SCHEMA_VERSION}, timeout_s=5.0):
+        if ok:
             _say(f"dynamic-gesture reloaded: {', '.join(answer.get('gestures', []))}")
-            return
-        _say(f"dynamic-gesture could not reload: {reply.err.payload.to_bytes().decode()}")
+        else:
+            _say(f"dynamic-gesture could not reload: {answer}")
         return
     _say("dynamic-gesture is not running; it loads the gesture when it starts")
 
@@ -230,7 +229,7 @@ def run(args: argparse.Namespace) -> int:
 
     Args:
         args: ``name``, ``takes``, ``user``, ``timeout``, optionally ``file`` and ``replace``,
-            and the Zenoh flags of `cbgo.cli.common.add_network_arguments`.
+            and the Zenoh flags of `cbgo.client.add_network_arguments`.
 
     Returns:
         0 on success, 1 if the takes were not all captured in time, 2 for a bad name or file.
@@ -251,7 +250,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"cbgo: {e}", file=sys.stderr)
             return 2
         return _finish(recorder, name, user, replace, None, None)
-    from cbgo.cli.common import session
+    from cbgo.client import session
 
     with session(args, "cbgo-gestures-record") as (sess, prefix_keys):
         operator = _live(recorder, sess, prefix_keys, timeout)

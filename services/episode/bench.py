@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cbgo import keys, wire
+from cbgo import client, keys, wire
 from cbgo.examples import example, open_hand
 from cbgo.transform import default_to_base
 
@@ -86,11 +86,8 @@ class Driver:
 
     def wait_matching(self, timeout: float = 10.0) -> None:
         """Waits until the episode service subscribes to the frames."""
-        deadline = time.monotonic() + timeout
-        while not (self.frames.matching_status.matching and self.static.matching_status.matching):
-            if time.monotonic() > deadline:
-                raise TimeoutError("the episode service did not subscribe to the frames")
-            time.sleep(0.01)
+        if not client.wait_matched(self.frames, self.static, timeout_s=timeout):
+            raise TimeoutError("the episode service did not subscribe to the frames")
 
     def frame(self, with_hand: bool) -> float:
         """Publishes one frame (and its static message); returns its ts."""

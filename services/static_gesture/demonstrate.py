@@ -21,7 +21,7 @@
    running one polls the file anyway. The service must see the same data directory (same
    machine or a shared volume) — the query says "reload", it does not carry the model.
 
-Only `run` touches the network (through ``cbgo.cli.common.session``); `Capture` is plain logic.
+Only `run` touches the network (through ``cbgo.client.session``); `Capture` is plain logic.
 
 Examples::
 
@@ -138,7 +138,7 @@ def list_gestures() -> list[dict]:
 
 def _capture(args: argparse.Namespace, capture: Capture) -> str | None:
     """Feeds live frames to the capture until done or timeout; returns the operator seen."""
-    from cbgo.cli.common import session
+    from cbgo.client import session
 
     inbox: queue.Queue = queue.Queue()
     with session(args, "cbgo-gestures") as (sess, k):
@@ -175,22 +175,20 @@ def _capture(args: argparse.Namespace, capture: Capture) -> str | None:
 
 def _reload(args: argparse.Namespace) -> str:
     """Asks a running static-gesture to reload; returns a line saying what happened."""
-    from cbgo.cli.common import session
+    from cbgo.client import query_all, session
 
     with session(args, "cbgo-gestures") as (sess, k):
-        replies = list(sess.get(k.ctl("static-gesture", "reload"), timeout=RELOAD_TIMEOUT_S))
+        replies = query_all(sess, k.ctl("static-gesture", "reload"), timeout_s=RELOAD_TIMEOUT_S)
     if not replies:
         return ("no static-gesture service answered; it loads the new model when it starts "
                 "(a running one on this machine also notices the file within its --watch-s)")
     lines = []
-    for reply in replies:
-        if reply.ok is not None:
-            answer = wire.decode(reply.ok.payload.to_bytes())
+    for ok, answer in replies:
+        if ok:
             lines.append(f"static-gesture now serves {answer['model']} "
                          f"({', '.join(answer['names'])})")
         else:
-            lines.append("static-gesture could not reload: "
-                         + reply.err.payload.to_bytes().decode("utf-8", "replace"))
+            lines.append(f"static-gesture could not reload: {answer}")
     return "\n".join(lines)
 
 

@@ -135,9 +135,13 @@ class Keys:
     def resolve(self, key: str) -> str:
         """Returns a user-typed key as a full key expression.
 
-        Keys that already start with the prefix, or with ``@`` (Zenoh's admin space), are taken
-        as they are; anything else is taken as relative to the prefix (``hands/frame``).
+        Keys that already start with the prefix, or with ``@`` (Zenoh's admin space, ``@/...``),
+        are taken as they are, except cbgo's own control keys (``@ctl/...``, ``@alive/...``),
+        which live under the prefix; anything else is taken as relative to the prefix
+        (``hands/frame``, ``@ctl/*/status``).
         """
-        if key.startswith(self.prefix + "/") or key == self.prefix or key.startswith("@"):
+        own_control = key.startswith(("@ctl/", "@alive/"))
+        if (key.startswith(self.prefix + "/") or key == self.prefix
+                or (key.startswith("@") and not own_control)):
             return key
         return f"{self.prefix}/{key.lstrip('/')}"

@@ -36,6 +36,7 @@ from typing import Any, ClassVar, Protocol
 
 import cbgo
 from cbgo import wire
+from cbgo.client import pick_reply, replies
 from cbgo.config import NoSettings, Resolved, resolve, zenoh_config
 from cbgo.errors import ConfigError, DeviceError, QueryError, RejectedMessage
 from cbgo.keys import Keys, Topic, check_service_name
@@ -260,20 +261,8 @@ class Context:
         key = self.keys.of(topic)
         wire.validate(message, wire.QUERY_SCHEMAS.get(topic.suffix), key)
         replies = self.transport.get(key, wire.encode(message), timeout_s)
-        if not replies:
-            raise QueryError(f"no reply on {key} within {timeout_s:g} s (is its service up?)")
-        errors = []
-        for ok, payload in replies:
-            if not ok:
-                errors.append(payload.decode("utf-8", "replace"))
-                continue
-            try:
-                return wire.decode_checked(payload, wire.REPLY_SCHEMAS.get(topic.suffix), key,
-                                           wire.max_bytes_for(topic.suffix,
-                                                              self.max_payload_bytes))
-            except RejectedMessage as e:
-                errors.append(f"malformed reply: {e}")
-        raise QueryError("; ".join(errors))
+        return pick_reply(replies, key, wire.REPLY_SCHEMAS.get(topic.suffix),
+                          wire.max_bytes_for(topic.suffix, self.max_payload_bytes), timeout_s)
 
     def wait_for_subscribers(self, topic: Topic, timeout_s: float = 5.0) -> bool:
         """Waits until someone subscribes to topic (a put before that would be lost)."""
@@ -466,13 +455,7 @@ class ZenohTransport:
 
     def get(self, key: str, payload: bytes, timeout_s: float) -> list[tuple[bool, bytes]]:
         """Sends a query and collects every reply until the timeout."""
-        out = []
-        for reply in self.session.get(key, payload=payload, timeout=timeout_s):
-            if reply.ok is not None:
-                out.append((True, reply.ok.payload.to_bytes()))
-            else:
-                out.append((False, reply.err.payload.to_bytes()))
-        return out
+        return [(r.ok, r.payload) for r in replies(self.session, key, payload, timeout_s)]
 
     def matching(self, key: str) -> bool:
         """Returns whether a subscriber matches the publisher of key."""

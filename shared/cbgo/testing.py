@@ -16,9 +16,10 @@ for their liveliness tokens, and tears everything down (also when a test fails):
         stack.start_service("episode")
         stack.wait_alive(["router", "episode"])
 
-The test talks to the processes from its own Zenoh session: `Stack.collect` gathers what is
-published on a key, `Stack.put` publishes once a subscriber is there, and `Process.wait_for_line`
-waits for a line in a process's log::
+The test talks to the processes from its own Zenoh session, through `cbgo.client`:
+`Stack.collect` gathers what is published on a key (a `cbgo.client.Collector`), `Stack.put`
+publishes once a subscriber is there, `Stack.query` checks replies against the contract, and
+`Process.wait_for_line` waits for a line in a process's log::
 
         summaries = stack.collect("episode/summary")
         stack.put("hands/frame", example("hands/frame"))
@@ -33,13 +34,13 @@ import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from cbgo import registry, wire
+from cbgo import client, registry, wire
+from cbgo.client import Collector
 from cbgo.errors import QueryError
 from cbgo.keys import Keys, Topic
 from cbgo.runtime import Context, IncomingQuery, Service
@@ -243,93 +244,6 @@ class Process:
         return next((line for line in self.log().splitlines() if text in line), None)
 
 
-class Collector:
-    """Every message published on one key, decoded, as the test's own session receives it.
-
-    Made by `Stack.collect`. Zenoh delivers on its own thread, so the waits poll under a lock.
-    Each message is kept with its arrival time (`time.perf_counter()`), for rate and pacing
-    checks.
-
-    Args:
-        session: the Zenoh session to subscribe with (anything with `declare_subscriber`).
-        key: the full key expression.
-    """
-
-    POLL_S = 0.02
-
-    def __init__(self, session, key: str):
-        self.key = key
-        self._lock = threading.Lock()
-        self._arrivals: list[tuple[float, Any]] = []
-        # Held so that the subscription lasts as long as the collector does.
-        self._subscriber = session.declare_subscriber(key, self._on_sample)
-
-    def _on_sample(self, sample) -> None:
-        arrived = time.perf_counter()  # before decoding, which would add to the measured pace
-        message = wire.decode(sample.payload.to_bytes())
-        with self._lock:
-            self._arrivals.append((arrived, message))
-
-    def arrivals(self) -> list[tuple[float, Any]]:
-        """Returns [(arrival time, message)] so far, oldest first."""
-        with self._lock:
-            return list(self._arrivals)
-
-    def items(self) -> list[Any]:
-        """Returns the messages so far, oldest first."""
-        return [message for _, message in self.arrivals()]
-
-    def last(self) -> Any:
-        """Returns the newest message.
-
-        Raises:
-            AssertionError: nothing has arrived.
-        """
-        got = self.items()
-        assert got, f"nothing arrived on {self.key}"
-        return got[-1]
-
-    def wait_count(self, n: int, predicate: Callable[[Any], bool] | None = None,
-                   timeout: float = 20.0) -> list[Any]:
-        """Waits until at least `n` messages match; returns every match so far, oldest first.
-
-        Args:
-            n: how many matching messages to wait for.
-            predicate: which messages count (all when None).
-            timeout: seconds to wait.
-
-        Raises:
-            TimeoutError: with the number that matched and the newest message.
-        """
-        deadline = time.monotonic() + timeout
-        while True:
-            got = self.items()
-            found = [m for m in got if predicate is None or predicate(m)]
-            if len(found) >= n:
-                return found
-            if time.monotonic() > deadline:
-                newest = repr(got[-1])[:500] if got else "nothing"
-                raise TimeoutError(f"{len(found)} of {n} matching messages on {self.key} "
-                                   f"within {timeout} s; the newest: {newest}")
-            time.sleep(self.POLL_S)
-
-    def wait(self, predicate: Callable[[Any], bool] | None = None,
-             timeout: float = 20.0) -> list[Any]:
-        """Waits until a message matches; returns every match so far, oldest first."""
-        return self.wait_count(1, predicate, timeout)
-
-    def first(self, predicate: Callable[[Any], bool] | None = None,
-              timeout: float = 20.0) -> Any:
-        """Waits until a message matches; returns the earliest match."""
-        return self.wait(predicate, timeout)[0]
-
-    def window(self, seconds: float) -> list[tuple[float, Any]]:
-        """Sleeps `seconds`; returns [(arrival time, message)] of what arrived meanwhile."""
-        start = len(self.arrivals())
-        time.sleep(seconds)
-        return self.arrivals()[start:]
-
-
 class Stack:
     """Router and services as real processes on a free loopback port, for tests.
 
@@ -379,13 +293,10 @@ class Stack:
     def session(self):
         """Returns the test's own Zenoh client session (opened on first use)."""
         if self._session is None:
-            import zenoh
+            from cbgo.config import ZenohOptions
 
-            from cbgo.config import ZenohOptions, zenoh_config
-
-            conf = zenoh_config(ZenohOptions(connect=[self.endpoint], prefix=self.prefix),
-                                "cbgo-test")
-            self._session = zenoh.open(conf)
+            self._session = client.open_session(
+                ZenohOptions(connect=[self.endpoint], prefix=self.prefix), "cbgo-test")
         return self._session
 
     def collect(self, suffix: str) -> Collector:
@@ -394,7 +305,7 @@ class Stack:
         The subscription takes a moment to reach the router: start collecting before the
         messages are due.
         """
-        return Collector(self.session(), self.keys.resolve(suffix))
+        return client.collect(self.session(), self.keys.resolve(suffix))
 
     def publisher(self, suffix: str, timeout: float = 5.0):
         """Returns the test session's publisher on a key, once a subscriber matches it.
@@ -407,11 +318,8 @@ class Stack:
         if key not in self._publishers:
             self._publishers[key] = self.session().declare_publisher(key)
         publisher = self._publishers[key]
-        deadline = time.monotonic() + timeout
-        while not publisher.matching_status.matching:
-            if time.monotonic() > deadline:
-                raise TimeoutError(f"no subscriber on {key} within {timeout} s")
-            time.sleep(0.01)
+        if not client.wait_matched(publisher, timeout_s=timeout):
+            raise TimeoutError(f"no subscriber on {key} within {timeout} s")
         return publisher
 
     def put(self, suffix: str, message: Any, timeout: float = 5.0) -> None:
@@ -424,11 +332,7 @@ class Stack:
 
     def alive(self) -> set[str]:
         """Returns the names of the services whose liveliness token is present."""
-        out = set()
-        for reply in self.session().liveliness().get(self.keys.alive("*"), timeout=1.0):
-            if reply.ok is not None:
-                out.add(self.keys.service_of_alive(str(reply.ok.key_expr)))
-        return out
+        return client.alive(self.session(), self.keys, 1.0)
 
     def wait_alive(self, names: list[str], timeout: float = 30.0) -> float:
         """Waits until every name has a liveliness token; returns the seconds it took.
@@ -461,16 +365,8 @@ class Stack:
         return time.monotonic() - t0
 
     def query(self, key: str, message: dict | None = None, timeout: float = 5.0):
-        """Queries a key; returns [(ok, decoded reply or error text)]."""
-        payload = None if message is None else wire.encode(message)
-        out = []
-        for reply in self.session().get(key, payload=payload, timeout=timeout):
-            if reply.ok is not None:
-                out.append((True, wire.decode(reply.ok.payload.to_bytes(),
-                                              wire.MAX_BYTES_RENDER)))
-            else:
-                out.append((False, reply.err.payload.to_bytes().decode("utf-8", "replace")))
-        return out
+        """Queries a key; returns [(ok, reply checked against the contract, or error text)]."""
+        return client.query_all(self.session(), key, message, timeout_s=timeout)
 
     def status(self, service: str) -> dict:
         """Returns a service's status reply.

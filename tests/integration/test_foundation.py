@@ -109,6 +109,17 @@ def test_cbgo_ls_shows_each_service_with_host_pid_and_keys(stack, probe):
     assert records["probe"]["queryable"] == ["cbgo/intent/infer"]
 
 
+def test_cbgo_get_of_every_status_answers_for_every_running_service(stack, probe):
+    stack.start_service("episode")
+    stack.wait_alive(["router", "probe", "episode"])
+    got = cli(stack, "get", "@ctl/*/status", "--json", "--timeout", "5")
+    assert got.returncode == 0, got.stderr
+    replies = [json.loads(line) for line in got.stdout.splitlines()]
+    assert {r["key"] for r in replies} >= {"cbgo/@ctl/probe/status",
+                                           "cbgo/@ctl/episode/status"}
+    assert {r["reply"]["name"] for r in replies} >= {"router", "probe", "episode"}
+
+
 def test_malformed_messages_are_counted_and_the_service_keeps_working(stack, probe):
     events = stack.collect("episode/event")
     bad = [

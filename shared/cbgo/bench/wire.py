@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cbgo import keys, wire
+from cbgo import client, keys, wire
 from cbgo.examples import EXAMPLE_KEYS, example
 
 
@@ -75,7 +75,7 @@ def router_latency(count: int, rate: float) -> dict:
 def _measure(stack, count: int, rate: float) -> dict:
     import zenoh
 
-    from cbgo.config import ZenohOptions, zenoh_config
+    from cbgo.config import ZenohOptions
 
     key = stack.keys.of(keys.HANDS_FRAME)
     delays: list[float] = []
@@ -87,13 +87,11 @@ def _measure(stack, count: int, rate: float) -> dict:
         if len(delays) >= count:
             done.set()
 
-    sub_conf = zenoh_config(ZenohOptions(connect=[stack.endpoint]), "bench-sub")
-    with zenoh.open(sub_conf) as sub_session:
+    with client.open_session(ZenohOptions(connect=[stack.endpoint]), "bench-sub") as sub_session:
         sub_session.declare_subscriber(key, on_sample)
         pub = stack.session().declare_publisher(
             key, congestion_control=zenoh.CongestionControl.DROP, express=True)
-        while not pub.matching_status.matching:
-            time.sleep(0.01)
+        client.wait_matched(pub, timeout_s=None)
         frame = example("hands/frame")
         for seq in range(count):
             frame["seq"], frame["ts"] = seq, time.time()

@@ -1,7 +1,8 @@
 """What every `cbgo` verb shares: Zenoh flags, opening a session, reading keys and payloads.
 
 CLI sessions are clients of the router like the services, but they give up after
-``--connect-timeout`` seconds with a clear message instead of waiting forever.
+``--connect-timeout`` seconds with a clear message instead of waiting forever. The session and
+the flags are `cbgo.client`'s; this module turns its errors into a message and an exit code.
 """
 
 from __future__ import annotations
@@ -14,16 +15,10 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from cbgo.config import ConfigError, add_zenoh_arguments, resolve_zenoh, zenoh_config
+from cbgo.client import ConnectError, add_network_arguments, connect
 from cbgo.keys import Keys
 
-
-def add_network_arguments(parser: argparse.ArgumentParser) -> None:
-    """Adds the Zenoh flags and --connect-timeout to a verb's parser."""
-    add_zenoh_arguments(parser)
-    parser.add_argument("--connect-timeout", type=float, default=5.0, metavar="S",
-                        help="give up if the router cannot be reached within S seconds "
-                             "[default: 5]")
+__all__ = ["add_network_arguments", "fail", "read_json_argument", "session"]
 
 
 def fail(message: str, code: int = 1) -> None:
@@ -34,22 +29,17 @@ def fail(message: str, code: int = 1) -> None:
 
 @contextmanager
 def session(args: argparse.Namespace, name: str = "cbgo-cli") -> Iterator[tuple[Any, Keys]]:
-    """Opens a client session from the verb's flags and environment; yields (session, keys)."""
-    import zenoh
+    """Opens a client session from the verb's flags and environment; yields (session, keys).
 
+    A session that cannot be opened ends the command with the reason (exit code 2 for bad
+    configuration, 1 for an unreachable network).
+    """
     try:
-        options = resolve_zenoh(vars(args))
-        conf = zenoh_config(options, name)
-    except ConfigError as e:
-        fail(f"configuration error: {e}", 2)
-    conf.insert_json5("connect/timeout_ms", str(int(args.connect_timeout * 1000)))
-    try:
-        sess = zenoh.open(conf)
-    except zenoh.ZError as e:
-        fail(f"cannot reach the Zenoh network at {', '.join(options.connect)} ({e}); is "
-             "`cbgo up` or `cbgo router` running? Use --connect to point elsewhere.")
+        sess, keys = connect(args, name)
+    except ConnectError as e:
+        fail(str(e), e.code)
     with sess:
-        yield sess, Keys(options.prefix)
+        yield sess, keys
 
 
 def read_json_argument(text: str) -> Any:

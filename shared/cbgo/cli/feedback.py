@@ -18,11 +18,10 @@ import argparse
 import sys
 import time
 
+from cbgo import client, wire
 from cbgo import keys as topics
-from cbgo import wire
 from cbgo.cli.common import add_network_arguments, fail, session
-from cbgo.codec import unpack_any
-from cbgo.errors import RejectedMessage
+from cbgo.errors import QueryError, RejectedMessage
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,12 +38,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _last(sess, keys, user: str | None, timeout: float) -> dict:
-    payload = wire.encode({"v": wire.SCHEMA_VERSION, **({"user": user} if user else {})})
-    for reply in sess.get(keys.ctl("intent", "last"), payload=payload, timeout=timeout):
-        if reply.ok is not None:
-            return unpack_any(reply.ok.payload.to_bytes())
-        print(f"cbgo: intent: {reply.err.payload.to_bytes().decode('utf-8', 'replace')}",
-              file=sys.stderr)
+    message = {"v": wire.SCHEMA_VERSION, **({"user": user} if user else {})}
+    try:
+        return client.query(sess, keys.ctl("intent", "last"), message, timeout_s=timeout)
+    except QueryError as e:
+        print(f"cbgo: intent: {e}", file=sys.stderr)
     fail("the intent service did not answer @ctl/intent/last; is it running? (or give "
          "--user and --episode)")
     return {}
@@ -73,12 +71,10 @@ def run(args: argparse.Namespace) -> int:
         except RejectedMessage as e:
             fail(str(e), 2)
         pub = sess.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
-        deadline = time.monotonic() + args.timeout
-        while not pub.matching_status.matching and time.monotonic() < deadline:
-            time.sleep(0.01)
-        if not pub.matching_status.matching:
+        try:
+            client.put_when_matched(pub, wire.encode(message), args.timeout)
+        except TimeoutError:
             fail(f"no subscriber on {key}: is the intent service running?")
-        pub.put(wire.encode(message))
         time.sleep(0.1)  # let the put leave before the session closes
     print(f"sent: {args.action}" + (f"({args.object})" if args.object else "") + f" for {user}")
     return 0

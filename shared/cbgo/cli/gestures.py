@@ -22,6 +22,7 @@ import importlib
 import json
 
 from cbgo.cli.common import add_network_arguments, fail
+from cbgo.client import ConnectError
 
 MODULES = {"static": "cbgo.services.static_gesture.demonstrate",
            "dynamic": "cbgo.services.dynamic_gesture.demonstrate"}
@@ -97,4 +98,8 @@ def run(args: argparse.Namespace) -> int:
         return _list(args.json)
     if args.frames is not None and args.frames < 1 or args.takes < 1:
         fail("--frames and --takes must be at least 1", 2)
-    return _module(args.kind).run(args)
+    try:
+        return _module(args.kind).run(args)
+    except ConnectError as e:  # the demonstrate modules open their sessions with cbgo.client
+        fail(str(e), e.code)
+        raise

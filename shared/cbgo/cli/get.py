@@ -1,7 +1,8 @@
 """Send a query and print every reply, decoded; error replies go to stderr.
 
-SELECTOR is relative to the prefix unless it starts with it or with ``@`` (Zenoh's admin
-space). The payload is JSON, sent as msgpack. Exit code 0 if at least one reply was ok.
+SELECTOR is relative to the prefix unless it starts with it or with ``@/`` (Zenoh's admin
+space); cbgo's control keys (``@ctl/...``, ``@alive/...``) are relative to the prefix too. The
+payload is JSON, sent as msgpack. Exit code 0 if at least one reply was ok.
 
 Examples::
 
@@ -17,7 +18,7 @@ import argparse
 import json
 import sys
 
-from cbgo import wire
+from cbgo import client, wire
 from cbgo.cli.common import add_network_arguments, read_json_argument, session
 from cbgo.codec import jsonable, pretty, unpack_any
 from cbgo.errors import RejectedMessage
@@ -59,14 +60,12 @@ def run(args: argparse.Namespace) -> int:
                     print(f"cbgo: warning: the query breaks the contract: {e}", file=sys.stderr)
             payload = wire.encode(message)
         ok = 0
-        for reply in sess.get(selector, payload=payload, timeout=args.timeout):
-            if reply.ok is not None:
+        for reply in client.replies(sess, selector, payload, args.timeout):
+            if reply.ok:
                 ok += 1
-                _print_ok(str(reply.ok.key_expr), decode_reply(reply.ok.payload.to_bytes()),
-                          args.json)
+                _print_ok(reply.key, decode_reply(reply.payload), args.json)
             else:
-                print(f"error: {reply.err.payload.to_bytes().decode('utf-8', 'replace')}",
-                      file=sys.stderr)
+                print(f"error: {reply.text}", file=sys.stderr)
     if not ok:
         print(f"no successful reply on {selector}", file=sys.stderr)
     return 0 if ok else 1

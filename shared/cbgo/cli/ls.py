@@ -16,10 +16,10 @@ import argparse
 import json
 from collections import defaultdict
 
+from cbgo import client
 from cbgo.cli.common import add_network_arguments, session
 from cbgo.cli.get import decode_reply
-from cbgo.cli.status import format_uptime, query_status
-from cbgo.cli.wait_alive import alive_services
+from cbgo.cli.status import format_uptime
 
 ROLES = ("publisher", "subscriber", "queryable")
 
@@ -37,11 +37,11 @@ def keys_by_session(sess, timeout: float) -> dict[str, dict[str, list[str]]]:
     """Returns {zenoh session id: {role: [keys]}} from the routers' admin space."""
     found: dict[str, dict[str, list[str]]] = defaultdict(lambda: defaultdict(list))
     for role in ROLES:
-        for reply in sess.get(f"@/*/router/{role}/**", timeout=timeout):
-            if reply.ok is None:
+        for reply in client.replies(sess, f"@/*/router/{role}/**", timeout_s=timeout):
+            if not reply.ok:
                 continue
-            key = str(reply.ok.key_expr).split(f"/router/{role}/", 1)[1]
-            holders = decode_reply(reply.ok.payload.to_bytes())
+            key = reply.key.split(f"/router/{role}/", 1)[1]
+            holders = decode_reply(reply.payload)
             if not isinstance(holders, dict):
                 continue
             for zid in holders.get("clients", []) + holders.get("peers", []):
@@ -52,8 +52,8 @@ def keys_by_session(sess, timeout: float) -> dict[str, dict[str, list[str]]]:
 
 def collect(sess, keys, timeout: float, all_keys: bool) -> list[dict]:
     """Returns one record per live service: status fields plus the keys it declared."""
-    alive = alive_services(sess, keys, timeout)
-    statuses = query_status(sess, keys, "*", timeout)
+    alive = client.alive(sess, keys, timeout)
+    statuses = client.status(sess, keys, "*", timeout)
     declared = keys_by_session(sess, timeout)
     records = []
     for name in sorted(alive | set(statuses)):

@@ -21,7 +21,7 @@ import argparse
 import sys
 import time
 
-from cbgo import examples, wire
+from cbgo import client, examples, wire
 from cbgo.cli.common import add_network_arguments, fail, read_json_argument, session
 from cbgo.errors import RejectedMessage
 
@@ -82,10 +82,7 @@ def run(args: argparse.Namespace) -> int:
         stream = spec is not None and hasattr(spec, "fields") and "seq" in spec.fields
         _check(_stamped(base, 0, stream) if args.stamp else base, spec, key, args.force)
         pub = sess.declare_publisher(key)
-        deadline = time.monotonic() + args.wait
-        while not pub.matching_status.matching and time.monotonic() < deadline:
-            time.sleep(0.01)
-        if not pub.matching_status.matching:
+        if not client.wait_matched(pub, timeout_s=args.wait):
             print(f"cbgo: warning: no subscriber on {key}; publishing anyway", file=sys.stderr)
         for i in range(args.count):
             message = _stamped(base, i, stream) if args.stamp else base

@@ -26,7 +26,7 @@ import time
 
 from tqdm import tqdm
 
-from cbgo import wire
+from cbgo import client, wire
 from cbgo.cli.common import add_network_arguments, fail, session
 from cbgo.errors import ConfigError, RecordingError, RejectedMessage
 from cbgo.keys import Keys
@@ -91,10 +91,7 @@ def _declare_all(sess, keys: Keys, chosen: list[str]) -> dict:
 
 
 def _wait_for_subscribers(publishers: dict, wait_s: float) -> None:
-    deadline = time.monotonic() + wait_s
-    while (not all(p.matching_status.matching for p in publishers.values())
-           and time.monotonic() < deadline):
-        time.sleep(0.01)
+    client.wait_matched(*publishers.values(), timeout_s=wait_s)
     for key, pub in publishers.items():
         if not pub.matching_status.matching:
             print(f"cbgo: warning: no subscriber on {key}; publishing anyway", file=sys.stderr)

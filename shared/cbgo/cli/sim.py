@@ -21,10 +21,10 @@ import json
 import sys
 from pathlib import Path
 
-from cbgo import keys, wire
+from cbgo import client, keys, wire
 from cbgo.cli.common import add_network_arguments, fail, read_json_argument, session
 from cbgo.codec import pretty
-from cbgo.errors import ConfigError, RejectedMessage
+from cbgo.errors import ConfigError, QueryError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -52,20 +52,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _query(args: argparse.Namespace, topic, message: dict) -> dict:
     with session(args, "cbgo-sim") as (sess, k):
-        key = k.of(topic)
-        errors = []
-        for reply in sess.get(key, payload=wire.encode(message), timeout=args.timeout):
-            if reply.ok is None:
-                errors.append(reply.err.payload.to_bytes().decode("utf-8", "replace"))
-                continue
-            try:
-                return wire.decode_checked(reply.ok.payload.to_bytes(),
-                                           wire.REPLY_SCHEMAS[topic.suffix], key,
-                                           wire.MAX_BYTES_RENDER)
-            except RejectedMessage as e:
-                errors.append(f"malformed reply: {e}")
-    fail("; ".join(errors) if errors else f"no reply on {key} within {args.timeout:g} s "
-         "(is mujoco-sim up? `cbgo up mujoco-sim`)")
+        try:
+            return client.query(sess, k.of(topic), message, timeout_s=args.timeout,
+                                hint="is mujoco-sim up? `cbgo up mujoco-sim`")
+        except QueryError as e:
+            fail(str(e))
     raise AssertionError("unreachable")
 
 

@@ -16,8 +16,9 @@ from __future__ import annotations
 import argparse
 import json
 
+from cbgo import client
 from cbgo.cli.common import add_network_arguments, session
-from cbgo.codec import jsonable, pretty, unpack_any
+from cbgo.codec import jsonable, pretty
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,21 +27,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timeout", type=float, default=3.0, help="seconds to wait [3]")
     parser.add_argument("--json", action="store_true", help="print the raw status as JSON")
     add_network_arguments(parser)
-
-
-def query_status(sess, keys, service: str = "*", timeout: float = 3.0) -> dict[str, dict]:
-    """Returns {service name: status} from every service answering the status query."""
-    out: dict[str, dict] = {}
-    for reply in sess.get(keys.ctl(service, "status"), timeout=timeout):
-        if reply.ok is None:
-            continue
-        try:
-            status = unpack_any(reply.ok.payload.to_bytes())
-        except ValueError:
-            continue
-        if isinstance(status, dict) and "name" in status:
-            out[status["name"]] = status
-    return out
 
 
 def format_uptime(seconds: float) -> str:
@@ -69,7 +55,7 @@ HEADER = (f"{'SERVICE':<16} {'HOST':<14} {'PID':>7} {'UPTIME':>8} {'RECEIVED':>9
 def run(args: argparse.Namespace) -> int:
     """Prints the status(es); returns 1 if no service answered."""
     with session(args, "cbgo-status") as (sess, keys):
-        statuses = query_status(sess, keys, args.service, args.timeout)
+        statuses = client.status(sess, keys, args.service, args.timeout)
     if not statuses:
         print(f"no service answered {keys.ctl(args.service, 'status')}")
         return 1

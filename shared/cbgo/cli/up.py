@@ -29,13 +29,8 @@ import time
 
 from cbgo import registry
 from cbgo.cli.common import fail
-from cbgo.config import (
-    DEFAULT_ROUTER_LISTEN,
-    ConfigError,
-    add_zenoh_arguments,
-    resolve_zenoh,
-    zenoh_config,
-)
+from cbgo.client import open_session
+from cbgo.config import DEFAULT_ROUTER_LISTEN, ConfigError, add_zenoh_arguments, resolve_zenoh
 from cbgo.keys import Keys
 from cbgo.supervisor import AliveWatcher, Child, Supervisor
 
@@ -176,10 +171,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _watch_tokens(options, watcher: AliveWatcher, stop: threading.Event) -> None:
-    import zenoh
-
     keys = Keys(options.prefix)
-    with zenoh.open(zenoh_config(options, "cbgo-up")) as sess:
+    with open_session(options, "cbgo-up") as sess:
         sess.liveliness().declare_subscriber(
             keys.alive("*"), lambda s: _on_token(watcher, keys, s), history=True)
         stop.wait()

@@ -14,6 +14,7 @@ import argparse
 import sys
 import time
 
+from cbgo import client
 from cbgo.cli.common import add_network_arguments, session
 
 
@@ -24,24 +25,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_network_arguments(parser)
 
 
-def alive_services(sess, keys, timeout: float = 1.0) -> set[str]:
-    """Returns the names of the services whose liveliness token is present."""
-    names = set()
-    for reply in sess.liveliness().get(keys.alive("*"), timeout=timeout):
-        if reply.ok is not None:
-            name = keys.service_of_alive(str(reply.ok.key_expr))
-            if name:
-                names.add(name)
-    return names
-
-
 def run(args: argparse.Namespace) -> int:
     """Polls the liveliness tokens until all are present or the timeout passes."""
     args.connect_timeout = min(args.connect_timeout, args.timeout)
     deadline = time.monotonic() + args.timeout
     with session(args, "cbgo-wait-alive") as (sess, keys):
         while True:
-            missing = set(args.services) - alive_services(sess, keys, 0.5)
+            missing = set(args.services) - client.alive(sess, keys, 0.5)
             if not missing:
                 return 0
             if time.monotonic() > deadline:

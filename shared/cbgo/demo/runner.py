@@ -21,12 +21,11 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from cbgo import client
 from cbgo import keys as K
-from cbgo import wire
-from cbgo.cli.status import query_status
 from cbgo.demo.inbox import Heard, Inbox
 from cbgo.demo.session import Session, Step, goal_failures, world_of
-from cbgo.errors import CbgoError, RejectedMessage
+from cbgo.errors import CbgoError, QueryError
 
 EPISODE_MARGIN_S = 8.0     # after the scenario's duration, how long the episode may still take
 INTENT_TIMEOUT_S = 5.0     # episode summary -> intent
@@ -127,18 +126,11 @@ class Runner:
         Raises:
             DemoError: an error reply, a malformed reply, or no reply within `timeout`.
         """
-        suffix = key.removeprefix(self.keys.prefix + "/")
-        for reply in self.session.get(key, payload=wire.encode(message), timeout=timeout):
-            if reply.ok is None:
-                raise DemoError(f"{key}: error reply: "
-                                f"{reply.err.payload.to_bytes().decode(errors='replace')}")
-            try:
-                return wire.decode_checked(reply.ok.payload.to_bytes(),
-                                           wire.REPLY_SCHEMAS.get(suffix), key,
-                                           wire.max_bytes_for(suffix))
-            except RejectedMessage as e:
-                raise DemoError(f"malformed reply: {e}") from None
-        raise DemoError(f"{key}: no reply within {timeout:g} s (is the service running?)")
+        try:
+            return client.query(self.session, key, message, timeout_s=timeout,
+                                hint="is the service running?")
+        except QueryError as e:
+            raise DemoError(f"{key}: {e}") from None
 
     def reset(self, scene: dict, timeout: float = 120.0) -> dict:
         """Resets the robot's world to `scene`; returns the settled scene/state."""
@@ -150,7 +142,7 @@ class Runner:
 
     def status(self, service: str, timeout: float = 3.0) -> dict | None:
         """Returns a service's status reply, or None if it does not answer."""
-        return query_status(self.session, self.keys, service, timeout).get(service)
+        return client.status(self.session, self.keys, service, timeout).get(service)
 
     # ---------------------------------------------------------------- session
 
@@ -323,7 +315,7 @@ class Runner:
 
     def pids(self) -> dict[str, int | None]:
         """Returns every expected process's pid, from one status query to all of them."""
-        statuses = query_status(self.session, self.keys, "*")
+        statuses = client.status(self.session, self.keys, "*")
         return {name: statuses.get(name, {}).get("pid") for name in self.expected()}
 
     def kill_scheduled(self, index: int, phase: str, at: float,

@@ -225,3 +225,15 @@ def test_the_topic_table_holds_the_eighteen_contract_keys_by_suffix():
 def test_a_topic_is_immutable():
     with pytest.raises(dataclasses.FrozenInstanceError):
         keys.HANDS_FRAME.reliable = True  # type: ignore[misc]
+
+
+@pytest.mark.parametrize("typed, full", [
+    ("@ctl/*/status", "cbgo/@ctl/*/status"),
+    ("@ctl/episode/status", "cbgo/@ctl/episode/status"),
+    ("@alive/*", "cbgo/@alive/*"),
+    ("@/*/router", "@/*/router"),
+])
+def test_resolve_puts_cbgos_own_control_keys_under_the_prefix(typed, full):
+    assert Keys("cbgo").resolve(typed) == full
+    assert Keys(CELL).resolve(typed) == (full.replace("cbgo/", f"{CELL}/", 1)
+                                         if full.startswith("cbgo/") else full)
