@@ -140,11 +140,19 @@ class Reply:
         return self.payload.decode("utf-8", "replace")
 
 
-def replies(session, key: str, payload: bytes | None = None,
-            timeout_s: float = 10.0) -> list[Reply]:
-    """Sends a query and returns every raw reply that came before the timeout."""
+def replies(session, key: str, payload: bytes | None = None, timeout_s: float = 10.0,
+            **options) -> list[Reply]:
+    """Sends a query and returns every raw reply that came before the timeout.
+
+    Args:
+        session: a Zenoh session.
+        key: the key expression or selector.
+        payload: the query payload, if any.
+        timeout_s: how long to wait for replies.
+        **options: passed on to ``session.get`` (e.g. ``consolidation``).
+    """
     out = []
-    for reply in session.get(key, payload=payload, timeout=timeout_s):
+    for reply in session.get(key, payload=payload, timeout=timeout_s, **options):
         if reply.ok is not None:
             out.append(Reply(str(reply.ok.key_expr), True, reply.ok.payload.to_bytes()))
         else:

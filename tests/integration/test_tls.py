@@ -26,9 +26,10 @@ from pathlib import Path
 
 import pytest
 
-from cbgo import wire
+from cbgo import client, wire
 from cbgo.cli.certs import DEFAULT_HOSTS, default_names, make
 from cbgo.config import ZenohOptions, zenoh_config
+from cbgo.keys import Keys
 from cbgo.testing import Stack, free_port
 
 zenoh = pytest.importorskip("zenoh")
@@ -70,9 +71,9 @@ def open_as(name: str, endpoint: str, certs: Path, timeout_ms: int = OPEN_TIMEOU
 
 def ask(session, key: str, payload: bytes = b"", timeout: float = 1.5) -> list[tuple[str, bytes]]:
     """Returns every ok reply (key, payload) to a query; replies are not merged by key."""
-    replies = session.get(key, payload=payload, timeout=timeout,
-                          consolidation=zenoh.ConsolidationMode.NONE)
-    return [(str(r.ok.key_expr), r.ok.payload.to_bytes()) for r in replies if r.ok is not None]
+    replies = client.replies(session, key, payload, timeout,
+                             consolidation=zenoh.ConsolidationMode.NONE)
+    return [(r.key, r.payload) for r in replies if r.ok]
 
 
 def ask_until_answered(session, key: str, payload: bytes = b"", deadline_s: float = 10.0):
@@ -85,10 +86,7 @@ def ask_until_answered(session, key: str, payload: bytes = b"", deadline_s: floa
 
 
 def alive_names(session, prefix: str = "cbgo") -> set[str]:
-    head = f"{prefix}/@alive/"
-    return {str(r.ok.key_expr)[len(head):]
-            for r in session.liveliness().get(f"{prefix}/@alive/*", timeout=1.5)
-            if r.ok is not None}
+    return client.alive(session, Keys(prefix), 1.5)
 
 
 class Inbox:
@@ -343,9 +341,8 @@ def test_the_real_planner_commands_dry_robot_and_the_cli_works_over_tls(tls_stac
                "p_object": {"drawer1": 0.9}, "confidence": 0.9, "status": "accepted",
                "reason": "", "model": "test"}
     publisher = intent.declare_publisher(f"{prefix}/intent")
-    while not publisher.matching_status.matching:
-        assert time.monotonic() < end, "the planner never subscribed to the intent"
-        time.sleep(0.05)
+    assert client.wait_matched(publisher, timeout_s=max(0.0, end - time.monotonic())), \
+        "the planner never subscribed to the intent"
     publisher.put(wire.encode(message))
     end = time.monotonic() + 30
     while True:
