@@ -3,10 +3,10 @@
 Scenes come from `workspace_scene`, a generator of its own (not `cbgo.world.random_scene`, on
 whose scenes the skills were developed), drawn inside the workspace of the contract
 (`cbgo.world.workspace_info`, what ``cbgo/sim/info`` answers): 0-2 drawers in any column whose
-opened tray stays in reach, 0-2 boxes and 1-3 cups of every documented size, anywhere in their
-cell; towers up to the documented height, objects in open and closed drawers, a held cup or
-box, full and empty cups, the TCP on every level. ``--generator world`` draws the world
-model's scenes instead.
+opened tray and handle stay in reach, 0-2 boxes and 1-3 cups of every documented size,
+anywhere in their cell; towers up to the documented height, objects in open and closed
+drawers, a held cup or box, full and empty cups, the TCP on every level. ``--generator
+world`` draws the world model's scenes instead.
 
 Each scene is loaded as ``cbgo/sim/reset`` would (a scene the workspace refuses is counted and
 drawn again; one that does not settle as described is counted and skipped). Every feasible
@@ -103,22 +103,32 @@ def _stand_on_table(obj: SceneObject, free: list, rng: np.random.Generator, info
                     cell: float) -> bool:
     """Puts an object on a free column, anywhere in its cell and the table area."""
     xs, ys, area = info["columns_x"], info["columns_y"], info["table_area"]
+    room = max(0.0, (cell - obj.size) / 2 - 0.002)
     options = [c for c in free if obj.type != "drawer"
                or (xs[c[0]] - info["drawer_tray_offset"] >= area["x"][0]
-                   and (c[0] - 1, c[1]) in free)]  # a drawer's tray needs the column in front
+                   and (c[0] - 1, c[1]) in free  # a drawer's tray needs the column in front
+                   and _drawer_min_x(obj, abs(ys[c[1]]) - room, info) <= xs[c[0]] + room)]
     if not options:
         return False
     i, j = options[int(rng.integers(len(options)))]
     free.remove((i, j))
     if obj.type == "drawer":
         free.remove((i - 1, j))
-    room = max(0.0, (cell - obj.size) / 2 - 0.002)
     x = float(np.clip(xs[i] + rng.uniform(-room, room), *area["x"]))
     y = float(np.clip(ys[j] + rng.uniform(-room, room), *area["y"]))
-    if obj.type == "drawer":  # the opened tray must stay in reach
-        x = max(x, area["x"][0] + info["drawer_tray_offset"])
+    if obj.type == "drawer":  # the opened tray and handle must stay in reach
+        x = max(x, area["x"][0] + info["drawer_tray_offset"], _drawer_min_x(obj, abs(y), info))
     obj.position = (round(x, 4), round(y, 4), 0.0)
     return True
+
+
+def _drawer_min_x(drawer: SceneObject, abs_y: float, info: dict) -> float:
+    """Returns the least x of a drawer at |y| whose opened handle stays in the arm's reach."""
+    reach, handle = info.get("min_reach", 0.0), info.get("drawer_handle")
+    if handle is None or abs_y >= reach:
+        return -np.inf
+    out = drawer.size / 2 + handle["travel_per_size"] * drawer.size + handle["out"]
+    return float(np.sqrt(reach ** 2 - max(abs_y, 0.0) ** 2) + out + 0.0005)
 
 
 def _rest_somewhere(obj: SceneObject, objects: list[SceneObject], rng: np.random.Generator,

@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from cbgo.world.scene import DRAWER_FLOOR
+from cbgo.world.workspace import DRAWER_HANDLE_OUT, DRAWER_TRAVEL_PER_SIZE
 
 PANDA_XML = Path(__file__).parent / "assets" / "franka_emika_panda" / "panda.xml"
 ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 8))
@@ -93,7 +94,7 @@ class DrawerDims:
     @property
     def travel(self) -> float:
         """How far the tray slides out, m (0.09 for the default 0.11 cabinet)."""
-        return round(0.818 * self.size, 4)
+        return round(DRAWER_TRAVEL_PER_SIZE * self.size, 4)
 
     @property
     def gap(self) -> float:
@@ -143,7 +144,7 @@ class DrawerDims:
     @property
     def handle(self) -> tuple[float, float, float]:
         """Grasp point of the handle knob in the tray frame."""
-        return (-self.size / 2 - 0.018, 0.0, self.size - 0.035)
+        return (-self.size / 2 - DRAWER_HANDLE_OUT, 0.0, self.size - 0.035)
 
     @property
     def half_height(self) -> float:

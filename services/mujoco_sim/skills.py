@@ -2,11 +2,13 @@
 
 `Robot.execute(action, object, params)`:
 1. reads the scene from the physics and checks the preconditions (`Robot.precheck`): the world
-   model's (`cbgo.world.check`), then two it does not know yet (an empty gripper to grasp a
-   handle; room for the gripper and its load at a move's goal cell); if one fails, the action
-   is refused with it, without moving;
+   model's (`cbgo.world.check`, which includes room for the gripper at a move's goal with the
+   hand at yaw 0), then two it does not know (an empty gripper to grasp a handle; the same room
+   with the hand at its real yaw and the physical footprints); if one fails, the action is
+   refused with it, without moving;
 2. plans it: grasp yaw, travel height, release pose, pouring direction; a plan that would
-   collide (the way of a move blocked, no collision-free pour) is refused, without moving;
+   collide (the way of a move blocked, no collision-free pour, no yaw at which the hand can
+   reach down to a grasp) is refused, without moving;
 3. executes it with IK-tracked Cartesian motions and real finger contact; a grasp weld is
    switched on only after both fingers were seen touching the object;
 4. verifies the outcome with `checks` and returns an `Outcome` (ok, or the precise failure);
@@ -47,6 +49,13 @@ OPEN_MARGIN = 0.012  # m between an open pad and the object
 POUR_CLEARANCE = 0.025  # m between the pouring cup and the target's rim
 MAX_POUR_DEG = 135.0
 HANDLE_HALF_WIDTH = 0.012
+# m the TCP may sit above the handle knob's centre when grasping it, highest first: the pads
+# still close on the knob's upper half, and at 0.014 the hand's underside (HAND_BOTTOM above
+# the TCP) is 0.024 m above the cabinet's top, so it clears a neighbouring cabinet (0.09..0.11
+# m) or a low tower beside it; level with the knob it grazed them and stalled (bench: stuck
+# 5-9 mm away, closed 8-13 % short). Lower ones when the wrist would touch a tower on the
+# cabinet itself; the first whose grasp and end poses are collision-free is taken, else 0.
+HANDLE_GRASP_LIFTS = (0.014, 0.007, 0.0)
 HAND_BOTTOM = 0.045  # m from the TCP up to the underside of the hand
 HAND_HALF = (0.035, 0.105)  # m, the hand's half extents across and along the fingers' axis
 RELEASE_LIFTS = (0.0, 0.005, 0.01, 0.015, 0.02, 0.03)  # m above the goal a load may be let go
@@ -227,10 +236,13 @@ class Robot:
         return hits
 
     def _best_pose(self, candidates, pose_of, fingers: float, approach: float,
-                   lifts=(0.0,)):
+                   lifts=(0.0,), what: str | None = None):
         """Returns (rot, position) of the first collision-free candidate, else the least bad.
 
-        Lifts are tried lowest first, and within one lift the yaws in order.
+        Lifts are tried lowest first, and within one lift the yaws in order. With `what` (the
+        object to grasp), a grasp with no collision-free candidate is refused instead: the
+        hand would press on a neighbour on the way down and stall before the fingers close
+        (a cup in the corner between two drawer cabinets, measured: stuck 14-18 mm above it).
 
         Args:
             candidates: hand yaws to try.
@@ -238,6 +250,7 @@ class Robot:
             fingers: the finger opening during the approach.
             approach: how far above the pose the vertical approach is checked, m.
             lifts: heights above the pose to try, m (a load may drop that far).
+            what: the object a grasp is for; refuse rather than take the least bad pose.
 
         Raises:
             Refused: no candidate is reachable.
@@ -257,6 +270,11 @@ class Robot:
                     best, best_depth = (rot, pos), depth
         if best is None:
             raise Refused("no reachable top-down pose for the gripper there")
+        if what is not None:
+            hits = self._pose_hits(best[1], best[0], fingers, approach) or []
+            near = sorted({h.what for h in hits}) or ["something"]
+            raise Refused(f"the gripper has no room to grasp {what}: at every yaw the hand "
+                          f"would touch {' or '.join(near)}")
         return best
 
     # ------------------------------------------------------------------ pick and release
@@ -269,7 +287,7 @@ class Robot:
         pre = finger_for_width(grasp_half_width(item) + OPEN_MARGIN)
         self.checker.sync()
         rot, pos = self._best_pose(yaw_candidates(item, sim), lambda _r: np.array(
-            [center[0], center[1], grasp_z]), pre, approach=0.1, lifts=(0.0, 0.008))
+            [center[0], center[1], grasp_z]), pre, approach=0.1, lifts=(0.0, 0.008), what=name)
         height = travel_height(sim, None)
         motion.gripper(sim, pre, 0.2)
         motion.travel(sim, pos, rot, height, fold=False)
@@ -425,18 +443,32 @@ class Robot:
 
     # ------------------------------------------------------------------ drawers
 
-    def _handle_pose(self, drawer: str) -> np.ndarray:
+    def _handle_pose(self, drawer: str, opening: bool, rot, fingers: float) -> np.ndarray:
+        """Returns the TCP position that grasps the handle (see `HANDLE_GRASP_LIFTS`).
+
+        The first lift whose grasp pose and the pose where the pull or push ends touch
+        nothing but the knob; else the knob's centre (the firmest grasp).
+        """
         item = self.sim.items[drawer]
-        return self.sim.data.xpos[item.body] + np.array(item.dims.handle)
+        knob = self.sim.data.xpos[item.body] + np.array(item.dims.handle)
+        q = float(self.sim.data.qpos[item.qpos])
+        shift = -(item.dims.travel - q) if opening else q
+        self.checker.sync(ignore_geoms=[item.handle_geom])
+        for lift in HANDLE_GRASP_LIFTS:
+            pos = knob + [0.0, 0.0, lift]
+            if all(self._pose_hits(p, rot, fingers) == [] for p in (pos, pos + [shift, 0, 0])):
+                return pos
+        return knob
 
     def _drawer(self, drawer: str, opening: bool) -> str | None:
         sim = self.sim
         item = sim.items[drawer]
-        handle = self._handle_pose(drawer)
-        rot = top_down(0.0)
         pre = finger_for_width(HANDLE_HALF_WIDTH + OPEN_MARGIN)
+        knob = sim.data.xpos[item.body] + np.array(item.dims.handle)
+        rot = motion.fold_to_wrist(sim, knob, top_down(0.0))
+        handle = self._handle_pose(drawer, opening, rot, pre)
         motion.gripper(sim, pre, 0.2)
-        motion.travel(sim, handle, rot, travel_height(sim, None), fold=True)
+        motion.travel(sim, handle, rot, travel_height(sim, None), fold=False)
         motion.gripper(sim, 0.0, 0.5)
         left, right = sim.finger_contacts([item.handle_geom])
         if not (left and right):

@@ -203,7 +203,13 @@ def test_reset_with_a_drawer_whose_open_tray_leaves_the_reach_is_refused(bus):
     ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "scene": near})
     assert ok and reply["ok"] is False
     assert "drawer1 at (0.32, 0.06) would open its tray to x 0.24" in reply["error"]
-    near["objects"][0]["position"] = [0.44, 0.06, 0.055]  # one column further: it fits
+    # one column further it opens its handle to x 0.277: out of reach on a middle row, in
+    # reach on an outer one (0.29 m from the base at the least)
+    near["objects"][0]["position"] = [0.44, 0.06, 0.055]
+    ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "scene": near})
+    assert ok and reply["ok"] is False
+    assert "drawer1 at (0.440, 0.06) would open its handle to (0.277, 0.06)" in reply["error"]
+    near["objects"][0]["position"] = [0.44, 0.18, 0.055]
     ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "scene": near})
     assert ok and reply["ok"], reply
 

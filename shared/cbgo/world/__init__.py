@@ -2,8 +2,9 @@
 
 - `cbgo.world.grid`: the 4×4×4 workspace grid in front of the robot (`Grid`, `DEFAULT_GRID`);
 - `cbgo.world.scene`: `Scene`, `SceneObject`, `Robot`, to and from the contract's scene dict;
-- `cbgo.world.actions`: preconditions (`failures`, `check`, `feasible`, `candidates`) and
-  symbolic effects (`apply`) of the eleven actions;
+- `cbgo.world.actions`: preconditions (`failures`, `check`, `feasible`, `candidates`; room for
+  the gripper at a move's goal, `gripper_room`) and symbolic effects (`apply`) of the eleven
+  actions;
 - `cbgo.world.generate`: random valid scenes as the paper samples them (`random_scene`);
 - `cbgo.world.files`: scene files in JSON or YAML (`read_scene_file`);
 - `cbgo.world.workspace`: the workspace of the contract (`workspace_info`, the ``cbgo/sim/info``
@@ -24,6 +25,7 @@ from cbgo.world.actions import (
     check,
     failures,
     feasible,
+    gripper_room,
 )
 from cbgo.world.consistency import check_consistent
 from cbgo.world.files import read_scene_file
@@ -40,6 +42,6 @@ from cbgo.world.workspace import (
 __all__ = [
     "DEFAULT_GRID", "MOVES", "OBJECT_AGNOSTIC", "Failure", "Grid", "InfeasibleAction", "Robot",
     "Scene", "SceneObject", "apply", "candidates", "check", "check_consistent", "failures",
-    "feasible", "random_scene", "read_scene_file", "reset_refusal", "table_area",
+    "feasible", "gripper_room", "random_scene", "read_scene_file", "reset_refusal", "table_area",
     "workspace_info", "workspace_problems",
 ]

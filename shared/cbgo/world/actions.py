@@ -12,7 +12,8 @@ inside a drawer nor held):
 action      needs
 ==========  ======================================================================
 move_*      the TCP stays inside the grid (``params.distance`` m, default one cell);
-            up/down along z, left/right as the person sees it (left = −y)
+            up/down along z, left/right as the person sees it (left = −y); the gripper
+            fits at the goal (`gripper_room`)
 place       a held object and a free table column (the TCP's, else the nearest;
             ``params.position`` asks for a given one); a drawer's front column is kept
             free for its tray
@@ -24,6 +25,16 @@ pour        a held full cup; another cup that is empty and not in a closed drawe
             (``params.angle_deg``, default 90)
 open/close  a closed/open drawer
 ==========  ======================================================================
+
+**The gripper at a move's goal** (`gripper_room`): seen top-down, at the goal TCP, neither
+what hangs under the TCP (the fingertips, `FINGERTIP_BELOW_TCP` down and `FINGER_HALF` either
+side; or the held object, grasped `GRASP_DEPTH` under its top, its footprint) nor the hand
+(from `HAND_BOTTOM` above the TCP up; `HAND_HALF` m across and along the fingers' closing
+axis, world y: top-down at yaw 0) may overlap an object whose top is above its bottom (5 mm
+tolerance). Footprints are squares of edge ``size``; an open drawer's also covers its tray
+and handle in front of the cabinet (`DRAWER_TRAVEL_PER_SIZE` × size + 0.03 m, top 0.01 m under
+the cabinet's). A robot may refuse more (mujoco-sim also checks the way there and the hand's
+real yaw).
 
 Moves and place ignore the object (`OBJECT_AGNOSTIC`). Effects: moves shift the TCP by whole
 cells and carry the held object; pick_up takes the object to the gripper (the TCP goes to it);
@@ -40,7 +51,8 @@ from typing import Any
 
 from cbgo.wire import ACTIONS
 from cbgo.world.grid import DEFAULT_GRID, Column, Grid
-from cbgo.world.scene import DRAWER_CAPACITY, GRASPABLE, MAX_STACK, SUPPORTS, Scene
+from cbgo.world.scene import DRAWER_CAPACITY, GRASPABLE, MAX_STACK, SUPPORTS, Scene, SceneObject
+from cbgo.world.workspace import DRAWER_TRAVEL_PER_SIZE
 
 MOVES: dict[str, tuple[int, int, int]] = {
     "move_up": (0, 0, 1), "move_down": (0, 0, -1),
@@ -52,6 +64,15 @@ TARGET_TYPES: dict[str, tuple[str, ...]] = {
     "open": ("drawer",), "close": ("drawer",),
 }
 DEFAULT_PARAMS: dict[str, dict[str, Any]] = {"pour": {"angle_deg": 90.0}}
+# the gripper, top-down (mujoco-sim's Panda hand): see "The gripper at a move's goal" above
+FINGERTIP_BELOW_TCP = 0.012  # m
+FINGER_HALF = 0.02  # m either side of the TCP that the (empty) fingers take
+GRASP_DEPTH = 0.02  # m under a held object's top that the TCP holds it (at most half its size)
+HAND_BOTTOM = 0.045  # m from the TCP up to the underside of the hand
+HAND_HALF = (0.035, 0.105)  # m, the hand's half extents along x and y (across and along the
+# fingers' closing axis)
+ROOM_TOL = 0.005  # m an object's top may reach above the bottom of the gripper's part
+TRAY_OUT_EXTRA = 0.03  # m the open tray's front panel and handle reach beyond its travel
 
 
 @dataclass(frozen=True)
@@ -161,7 +182,47 @@ def _move_failures(action: str, scene: Scene, params: Mapping[str, Any],
         way = action.removeprefix("move_")
         return [Failure("out_of_reach", f"the TCP cannot move {way} by {steps} cell(s): it would "
                                         "leave the workspace grid")]
+    blocker = gripper_room(scene, grid.position(target))
+    if blocker is not None:
+        return [Failure("no_room", f"the gripper does not fit at the goal cell {list(target)}: "
+                                   f"{blocker} is there")]
     return []
+
+
+def gripper_room(scene: Scene, tcp) -> str | None:
+    """Returns the object the gripper (and its load) would overlap with the TCP at tcp, or None.
+
+    The rule of "The gripper at a move's goal" in the module docstring.
+    """
+    held = scene.get(scene.robot.holding) if scene.robot.holding is not None else None
+    x, y, z = (float(v) for v in tcp)
+    if held is None:
+        parts = [(z - FINGERTIP_BELOW_TCP, FINGER_HALF, FINGER_HALF)]
+    else:
+        hang = max(FINGERTIP_BELOW_TCP, held.size - min(GRASP_DEPTH, held.size / 2))
+        parts = [(z - hang, held.size / 2, held.size / 2)]
+    parts.append((z + HAND_BOTTOM, *HAND_HALF))
+    for obj in scene.objects:
+        if held is not None and obj.name == held.name:
+            continue
+        for (x0, x1, y0, y1), top in _footprints(obj):
+            for bottom, hx, hy in parts:
+                if (top > bottom - ROOM_TOL and x0 - hx < x < x1 + hx
+                        and y0 - hy < y < y1 + hy):
+                    return obj.name
+    return None
+
+
+def _footprints(obj: SceneObject) -> list[tuple[tuple[float, float, float, float], float]]:
+    """Returns an object's footprints ((x0, x1, y0, y1), top z): an open drawer has two."""
+    x, y, z = (float(v) for v in obj.position)
+    half = obj.size / 2
+    out = [((x - half, x + half, y - half, y + half), z + half)]
+    if obj.type == "drawer" and obj.open:
+        front = x - half
+        out.append(((front - DRAWER_TRAVEL_PER_SIZE * obj.size - TRAY_OUT_EXTRA, front,
+                     y - half, y + half), obj.size - 0.01))
+    return out
 
 
 def reserved_columns(scene: Scene, grid: Grid = DEFAULT_GRID) -> dict[Column, str]:

@@ -12,7 +12,14 @@ The rules, in the robot base frame (metres), for a `Grid` (`cbgo.world.grid`):
 - **what the arm reaches**: top-down, every point of the table area from the table up to the
   grid's top level (a unit test of mujoco-sim solves the Panda's IK at its corners); so a
   drawer's opened tray, `DRAWER_TRAY_OFFSET` towards the robot, must stay in the table area
-  too (a drawer in the column nearest the robot would open out of reach);
+  too (a drawer in the column nearest the robot would open out of reach); and the handle of
+  the opened drawer, which the arm grasps to close it, must lie at least `MIN_REACH` from the
+  robot's base axis (top-down, the Panda does not fold nearer: mujoco-sim's IK fails within
+  0.285 m for TCP heights 0.05 … 0.22 m). The tray slides out `DRAWER_TRAVEL_PER_SIZE` × size
+  (0.09 m for the default 0.11 m cabinet) and its knob is grasped `DRAWER_HANDLE_OUT` in front
+  of the tray: the handle of an open drawer at (x, y) is at x − 1.318 × size − 0.018, so
+  a 0.11 m drawer in the column at x 0.44 opens out of reach on the middle rows (y ±0.06)
+  and in reach on the outer ones (y ±0.18);
 - **sizes** (the edge of an object's bounding cube) within `SIZE_RANGES`: the gripper opens
   80 mm and needs 12 mm between each pad and a cup or box; a drawer cabinet fills at most one
   cell (0.12 m) and must hold a cup;
@@ -22,6 +29,7 @@ The rules, in the robot base frame (metres), for a `Grid` (`cbgo.world.grid`):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,6 +45,11 @@ from cbgo.world.scene import (
 
 REACH_MARGIN = 0.02  # m beyond the outer columns that table positions may lie (the jitter)
 SIZE_RANGES = {"cup": (0.04, 0.07), "box": (0.03, 0.055), "drawer": (0.09, 0.11)}
+# an opened drawer's tray slides out this many times the cabinet's size, and its handle is
+# grasped DRAWER_HANDLE_OUT in front of the tray's front (mujoco-sim builds its cabinets so)
+DRAWER_TRAVEL_PER_SIZE = 0.818
+DRAWER_HANDLE_OUT = 0.018  # m
+MIN_REACH = 0.29  # m from the robot's base axis (x, y = 0) that the arm reaches top-down
 OVERLAP_TOL = 0.002  # m two footprints may touch by without counting as overlapping
 
 
@@ -78,6 +91,9 @@ def workspace_info(grid: Grid = DEFAULT_GRID) -> dict[str, Any]:
         "sizes": {kind: {"min": lo, "max": hi, "default": DEFAULT_SIZES[kind]}
                   for kind, (lo, hi) in SIZE_RANGES.items()},
         "drawer_tray_offset": DRAWER_TRAY_OFFSET,
+        "min_reach": MIN_REACH,
+        "drawer_handle": {"travel_per_size": DRAWER_TRAVEL_PER_SIZE,
+                          "out": DRAWER_HANDLE_OUT},
         "drawer_capacity": DRAWER_CAPACITY,
         "max_stack": MAX_STACK,
     }
@@ -137,7 +153,19 @@ def _position_problems(obj: SceneObject, area: Area) -> list[str]:
         return [f"{obj.name} at ({x:.2f}, {y:.2f}) would open its tray to x "
                 f"{x - DRAWER_TRAY_OFFSET:.2f}, out of the arm's reach ({area.describe()}): "
                 f"a drawer stands at x >= {area.x[0] + DRAWER_TRAY_OFFSET:.2f}"]
+    handle = open_handle_x(obj)
+    reach = math.floor(math.hypot(handle, y) * 1000) / 1000  # never shown as MIN_REACH itself
+    if obj.type == "drawer" and math.hypot(handle, y) < MIN_REACH:
+        return [f"{obj.name} at ({x:.3f}, {y:.2f}) would open its handle to ({handle:.3f}, "
+                f"{y:.2f}), {reach:.3f} m from the robot's base axis: the arm reaches "
+                f"top-down no nearer than {MIN_REACH:.2f} m (see cbgo/sim/info)"]
     return []
+
+
+def open_handle_x(drawer: SceneObject) -> float:
+    """Returns the x of a drawer's handle (where the arm grasps it) when the drawer is open."""
+    return (float(drawer.position[0]) - drawer.size / 2
+            - DRAWER_TRAVEL_PER_SIZE * drawer.size - DRAWER_HANDLE_OUT)
 
 
 def footprint(obj: SceneObject) -> tuple[float, float, float, float]:

@@ -34,12 +34,30 @@ def table_scene(**kw):
 @pytest.mark.parametrize("action, axis, sign", [
     ("move_up", 2, 1), ("move_down", 2, -1), ("move_left", 1, -1), ("move_right", 1, 1)])
 def test_a_move_shifts_the_tcp_one_cell_and_left_is_minus_y(action, axis, sign):
-    scene = table_scene(tcp_cell=(1, 1, 1))
+    scene = table_scene(tcp_cell=(1, 1, 2))
     after = apply(action, None, {}, scene)
     delta = [a - b for a, b in zip(after.robot.tcp, scene.robot.tcp, strict=True)]
     assert delta[axis] == pytest.approx(sign * DEFAULT_GRID.step[axis])
     assert sum(abs(d) for i, d in enumerate(delta) if i != axis) == pytest.approx(0.0)
-    assert scene.robot.tcp == DEFAULT_GRID.position((1, 1, 1))  # the input is unchanged
+    assert scene.robot.tcp == DEFAULT_GRID.position((1, 1, 2))  # the input is unchanged
+
+
+def test_a_move_whose_goal_leaves_the_gripper_no_room_is_infeasible():
+    # (1, 1, 0) is 0.12 m beside box1 with cup2 on it (top 0.11 m): the hand, 0.105 m either
+    # side of the TCP along y and 0.045 m above it, would sit on cup2
+    scene = table_scene(tcp_cell=(1, 1, 1))
+    assert failures("move_down", None, scene)[0].message == (
+        "the gripper does not fit at the goal cell [1, 1, 0]: cup2 is there")
+    assert codes("move_down", None, table_scene(tcp_cell=(1, 0, 1))) == []
+    # the fingers on a cup: straight down onto cup1 at (0, 0) from level 1
+    assert codes("move_down", None, table_scene(tcp_cell=(0, 0, 1))) == ["no_room"]
+    # a held 0.06 m cup hangs 0.04 m under the TCP: at level 1 (0.16) it clears cup2 on box1
+    # (top 0.11), and at level 0 it would stand in it
+    assert codes("move_left", None, table_scene(tcp_cell=(1, 3, 1), holding="cup1")) == []
+    assert codes("move_left", None, table_scene(tcp_cell=(1, 3, 0), holding="cup1")) == [
+        "no_room"]
+    # an open drawer's tray and handle are in the way in front of it, a closed one's are not
+    assert codes("move_down", None, table_scene(tcp_cell=(2, 0, 1))) == ["no_room"]
 
 
 def test_a_move_that_leaves_the_grid_is_out_of_reach():
@@ -217,7 +235,7 @@ def test_apply_refuses_an_infeasible_action_with_every_reason():
 
 
 def test_candidates_list_moves_and_place_once_without_an_object():
-    scene = table_scene(tcp_cell=(1, 1, 1))
+    scene = table_scene(tcp_cell=(1, 1, 2))
     pairs = candidates(scene)
     assert ("pick_up", "cup1") in pairs and ("pick_up", "cup2") in pairs
     assert ("pick_up", "box1") not in pairs and ("close", "drawer1") in pairs

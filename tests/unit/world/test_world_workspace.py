@@ -66,7 +66,21 @@ def test_a_drawer_in_the_column_nearest_the_robot_is_refused_its_tray_would_leav
     assert problems == ["drawer1 at (0.32, -0.06) would open its tray to x 0.24, out of the "
                         "arm's reach (x 0.30..0.70, y -0.20..0.20): a drawer stands at x >= "
                         "0.38"]
-    assert workspace_problems(world(obj("drawer1", "drawer", (1, 1)))) == []
+    assert workspace_problems(world(obj("drawer1", "drawer", (1, 0)))) == []
+
+
+def test_a_drawer_whose_open_handle_comes_nearer_the_base_than_the_arm_reaches_is_refused():
+    # a 0.11 m cabinet at x 0.44 opens its handle to x 0.277: 0.283 m from the base on the
+    # middle rows, 0.331 m on the outer ones; a 0.09 m cabinet opens it to x 0.303
+    middle = world(obj("drawer1", "drawer", (1, 2)))
+    assert workspace_problems(middle) == [
+        "drawer1 at (0.440, 0.06) would open its handle to (0.277, 0.06), 0.283 m from the "
+        "robot's base axis: the arm reaches top-down no nearer than 0.29 m (see cbgo/sim/info)"]
+    assert workspace_problems(world(obj("drawer1", "drawer", (1, 3)))) == []
+    small = world(obj("drawer1", "drawer", (1, 2)))
+    small.get("drawer1").size = 0.09
+    assert workspace_problems(small) == []
+    assert workspace_info()["min_reach"] == 0.29
 
 
 def test_a_held_stacked_or_contained_object_is_judged_by_its_support_not_its_position():
