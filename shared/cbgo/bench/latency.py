@@ -73,13 +73,13 @@ from cbgo import keys, registry, wire
 
 PIPELINE = ("leap-bridge", "static-gesture", "dynamic-gesture", "episode", "intent", "planner")
 QUICK_EPISODES = 4
-SCENE = {  # the contract's example scene: a full cup, a closed drawer, a box
+SCENE = {  # a full cup, a closed drawer, a box, inside the workspace (the demo's cells)
     "objects": [
-        {"name": "cup1", "type": "cup", "position": [0.5, 0.1, 0.05], "size": 0.08,
+        {"name": "cup1", "type": "cup", "position": [0.44, 0.06, 0.03], "size": 0.06,
          "full": True, "on": None, "inside": None},
-        {"name": "drawer1", "type": "drawer", "position": [0.6, -0.3, 0.1], "size": 0.2,
+        {"name": "drawer1", "type": "drawer", "position": [0.68, -0.18, 0.055], "size": 0.11,
          "open": False, "opening": 0.0, "contains": []},
-        {"name": "box1", "type": "box", "position": [0.4, 0.2, 0.025], "size": 0.05,
+        {"name": "box1", "type": "box", "position": [0.56, 0.18, 0.025], "size": 0.05,
          "on": None, "inside": None},
     ],
     "robot": {"tcp": [0.3, 0.0, 0.4], "gripper_open": True, "holding": None},
