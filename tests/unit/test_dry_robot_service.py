@@ -135,8 +135,8 @@ def test_the_timer_publishes_both_states_valid_and_the_robot_state_says_it_is_sy
     assert state["gripper_width"] == pytest.approx(0.06)  # closed on cup1
 
 
-def test_stop_aborts_the_action_in_flight_without_effect():
-    bus = FakeBus(DryRobot(DryRobotSettings(action_s=60.0)))
+def _place_in_flight(bus):
+    """Resets to the paper scene and starts ``place`` on a thread; returns once it moves."""
     bus.query(keys.SIM_RESET, {"v": 1, "scene": PAPER_SCENE})
     replies = []
     worker = threading.Thread(target=lambda: replies.append(bus.query(
@@ -146,6 +146,12 @@ def test_stop_aborts_the_action_in_flight_without_effect():
     while not any(m["moving"] for m in published(bus, "robot/state")):
         assert time.monotonic() < deadline, "the action never started"
         time.sleep(0.01)
+    return worker, replies
+
+
+def test_stop_aborts_the_action_in_flight_without_effect():
+    bus = FakeBus(DryRobot(DryRobotSettings(action_s=60.0)))
+    worker, replies = _place_in_flight(bus)
     assert published(bus, "robot/state")[-1]["action"] == "place"
     bus.feed_raw(keys.ROBOT_STOP, b"not even msgpack")  # any payload stops
     worker.join(10)
@@ -238,15 +244,7 @@ class _FaultyDryRobot(DryRobot):
 
 def test_a_failure_that_leaves_a_contradiction_names_it_in_the_reply_and_counts_it():
     bus = FakeBus(_FaultyDryRobot(DryRobotSettings(action_s=60.0)))
-    bus.query(keys.SIM_RESET, {"v": 1, "scene": PAPER_SCENE})
-    replies = []
-    worker = threading.Thread(target=lambda: replies.append(bus.query(
-        keys.ROBOT_ACT, {"v": 1, "action": "place", "object": None, "params": {}})))
-    worker.start()
-    deadline = time.monotonic() + 10  # a bound on waiting, not a measurement
-    while not any(m["moving"] for m in published(bus, "robot/state")):
-        assert time.monotonic() < deadline, "the action never started"
-        time.sleep(0.01)
+    worker, replies = _place_in_flight(bus)
     bus.feed_raw(keys.ROBOT_STOP, b"")
     worker.join(10)
     (ok, reply), = replies
