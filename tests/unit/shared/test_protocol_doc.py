@@ -1,18 +1,21 @@
-"""docs/protocol.md: its example payloads are valid, complete and generated from cbgo.examples.
+"""docs/protocol.md: its example payloads are valid, complete and generated from cbgo.examples;
+docs/schemas: the JSON Schemas generated from cbgo.wire, which the examples fit too.
 
 An example is a ```json block preceded by a marker line ``<!-- example: <suffix> <role> -->``
 (role: message, query or reply). Bytes cannot be JSON, so the doc writes them as
 ``"<bytes: N>"``; they are turned back into N bytes before validating.
 """
 
+import base64
 import importlib.util
 import json
 import re
 from pathlib import Path
 
+import jsonschema
 import pytest
 
-from cbgo import wire
+from cbgo import json_schema, wire
 from cbgo.examples import EXAMPLE_KEYS
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -96,3 +99,53 @@ def test_the_examples_in_the_protocol_doc_are_the_ones_cbgo_examples_generates()
     text = DOC.read_text()
     assert generator.update(text) == text, (
         "docs/protocol.md is stale; run: python docs/gen_protocol_examples.py")
+
+
+# --------------------------------------------------------------------- JSON Schemas (docs/schemas)
+
+SCHEMA_DIR = ROOT / "docs" / "schemas"
+
+
+def with_base64(value):
+    """Returns value with every "<bytes: N>" placeholder as JSON carries bytes: base64 text."""
+    if isinstance(value, dict):
+        return {k: with_base64(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [with_base64(v) for v in value]
+    if isinstance(value, str) and (m := BYTES.match(value)):
+        return base64.b64encode(bytes(int(m.group(1)))).decode()
+    return value
+
+
+@pytest.mark.parametrize(("suffix", "role", "text"), EXAMPLES,
+                         ids=[f"{s} {r}" for s, r, _ in EXAMPLES])
+def test_every_example_in_the_protocol_doc_fits_its_json_schema(suffix, role, text):
+    schema = json_schema.for_key(suffix, role)
+    jsonschema.Draft202012Validator.check_schema(schema)
+    jsonschema.validate(with_base64(json.loads(text)), schema,
+                        cls=jsonschema.Draft202012Validator)
+
+
+def test_the_json_schemas_in_docs_are_the_ones_generated_from_the_wire():
+    generated = {json_schema.file_name(s, r): schema
+                 for (s, r), schema in json_schema.every_schema().items()}
+    on_disk = {p.name: json.loads(p.read_text()) for p in SCHEMA_DIR.glob("*.json")}
+    assert on_disk == generated, "run: python -m cbgo.json_schema docs/schemas"
+
+
+@pytest.mark.parametrize(("change", "why"), [
+    (lambda m: m.pop("probs"), "a required field is missing"),
+    (lambda m: m.update(side="middle"), "not one of the choices"),
+    (lambda m: m.update(seq=-1), "below the minimum"),
+    (lambda m: m.update(window=[1.0]), "a list too short"),
+    (lambda m: m.update(names="swipe_up"), "not a list"),
+])
+def test_a_json_schema_rejects_what_the_wire_rejects(change, why):
+    (text,) = [t for s, r, t in EXAMPLES if (s, r) == ("gestures/dynamic", "message")]
+    message = json.loads(text)
+    change(message)
+    with pytest.raises(wire.RejectedMessage):
+        wire.validate(message, wire.schema_for("gestures/dynamic"), "gestures/dynamic")
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate(message, json_schema.for_key("gestures/dynamic"),
+                            cls=jsonschema.Draft202012Validator)
