@@ -47,7 +47,6 @@ from cbgo.wire import DYNAMIC_GESTURES
 
 OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture of ours
 NOTHING = "nothing"
-P_REPORT = 0.5
 MOVE_S, MOVE_MM_S, HOLD_S, LEAVE_S = 0.6, 100.0, 0.4, 0.6
 
 
@@ -138,12 +137,12 @@ class _Player:
 
 
 def _reported(messages: list[dict]) -> list[tuple[str, float, dict]]:
-    """Returns (gesture, p, message) of the messages whose top gesture has p ≥ `P_REPORT`."""
+    """Returns (gesture, p, message) of the messages whose top gesture has p ≥ `GESTURE_P`."""
     out = []
     for msg in messages:
         probs = np.asarray(msg["probs"][:-1])
         top = int(np.argmax(probs))
-        if probs[top] >= P_REPORT:
+        if probs[top] >= GESTURE_P:
             out.append((msg["names"][top], float(probs[top]), msg))
     return out
 
@@ -188,19 +187,34 @@ def run_stream(player: _Player, sequences: list[shrec.Sequence]) -> dict:
     with player.lock:
         messages = [m for _, m in player.dynamic[first:]]
     swipes = [(name, t0 + a, t0 + b) for name, a, b in spans if name in shrec.SWIPES.values()]
-    hit = [False] * len(swipes)
-    false_strokes = set()  # a stroke reported wrongly counts once, however many windows
-    for name, _, msg in _reported(messages):
-        w0, w1 = msg["window"]
-        match = [i for i, (s, a, b) in enumerate(swipes) if s == name and w0 < b and w1 > a]
-        if match:
-            hit[match[0]] = True
-        else:
-            false_strokes.add((msg["hand_id"], w0))
-    false = len(false_strokes)
-    swipe_s = sum(b - a for _, a, b in swipes)
-    return {"swipes": len(swipes), "recalled": int(sum(hit)), "false_triggers": false,
-            "other_minutes": max(t1 - t0 - swipe_s, 1e-9) / 60.0}
+    reports = [(name, *msg["window"], (msg["hand_id"], msg["window"][0]))
+               for name, _, msg in _reported(messages)]
+    return stream_figures(reports, swipes, t1 - t0)
+
+
+def stream_figures(reports: list[tuple], strokes: list[tuple], seconds: float) -> dict:
+    """Recall and false triggers of a continuous stream.
+
+    Args:
+        reports: (gesture, t_start, t_end, stroke key) of every reported window.
+        strokes: (gesture, t_start, t_end) of the true strokes.
+        seconds: the stream's length.
+
+    A true stroke is recalled when a window of its gesture overlaps it; a window that overlaps
+    none of its gesture is a false trigger, counted once per stroke however many windows.
+    """
+    hit = [False] * len(strokes)
+    false_strokes = set()
+    for name, w0, w1, key in reports:
+        match = [i for i, (g, a, b) in enumerate(strokes) if g == name and w0 < b and w1 > a]
+        for i in match:
+            hit[i] = True
+        if not match:
+            false_strokes.add(key)
+    busy = sum(b - a for _, a, b in strokes)
+    return {"strokes": len(strokes), "recalled": int(sum(hit)),
+            "false_triggers": len(false_strokes),
+            "other_minutes": max(seconds - busy, 1e-9) / 60.0}
 
 
 def latencies(player: _Player) -> dict:
@@ -265,7 +279,7 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
         result[field] = score(result["trials"], field)
         _print_score(field, result[field])
     recalled = sum(s["recalled"] for s in result["streams"])
-    swipes = sum(s["swipes"] for s in result["streams"])
+    swipes = sum(s["strokes"] for s in result["streams"])
     minutes = sum(s["other_minutes"] for s in result["streams"])
     false = sum(s["false_triggers"] for s in result["streams"])
     if swipes:
@@ -392,24 +406,13 @@ def score_stream(classifier, scenario: Scenario, config) -> dict:
     strokes = simdata.true_strokes(times, labels)
     segmenter = Segmenter(config)
     windows = [w for f in frames for w in segmenter.update(f.t, f.hands)]
-    hit = [False] * len(strokes)
-    false_strokes = set()
+    reports = []
     for window, probs in reported(windows, ReturnFilter(segmenter.config.return_s),
                                   classifier.classify):
         top = int(np.argmax(probs[:-1]))
-        if probs[top] < GESTURE_P:
-            continue
-        name = classifier.names[top]
-        match = [i for i, (g, a, b) in enumerate(strokes)
-                 if g == name and window.t_start < b and window.t_end > a]
-        for i in match:
-            hit[i] = True
-        if not match:
-            false_strokes.add(window.stroke)
-    false = len(false_strokes)
-    busy = sum(b - a for _, a, b in strokes)
-    return {"strokes": len(strokes), "recalled": int(sum(hit)), "false_triggers": false,
-            "other_minutes": max(times[-1] - times[0] - busy, 1e-9) / 60.0}
+        if probs[top] >= GESTURE_P:
+            reports.append((classifier.names[top], window.t_start, window.t_end, window.stroke))
+    return stream_figures(reports, strokes, times[-1] - times[0])
 
 
 def run_streams(classifier, users: int, seed: int, config, ranges) -> dict:

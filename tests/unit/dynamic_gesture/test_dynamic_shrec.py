@@ -94,6 +94,16 @@ def test_a_continuous_stream_keeps_the_hand_in_view_between_recordings(dataset):
     assert spans[1][1] > spans[0][2]
 
 
+def test_stream_figures_count_recalled_strokes_and_each_false_stroke_once():
+    strokes = [("swipe_up", 1.0, 2.0), ("swipe_left", 5.0, 6.0)]
+    reports = [("swipe_up", 1.2, 1.6, "s1"), ("swipe_up", 1.2, 1.9, "s1"),  # recalled twice
+               ("swipe_down", 2.5, 3.0, "s2"), ("swipe_down", 2.5, 3.2, "s2"),  # one false
+               ("swipe_right", 5.1, 5.8, "s3")]  # the wrong gesture over a stroke: false
+    figures = realbench.stream_figures(reports, strokes, 62.0)
+    assert figures == {"strokes": 2, "recalled": 1, "false_triggers": 2,
+                       "other_minutes": pytest.approx(1.0)}
+
+
 def test_leave_people_out_scores_each_person_with_a_library_learned_without_them(tmp_path):
     t = np.linspace(0, 1, 15)[:, None, None]
     s = t**3 * (10 - 15 * t + 6 * t**2)
