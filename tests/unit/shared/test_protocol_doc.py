@@ -40,15 +40,25 @@ def doc_examples() -> list[tuple[str, str, str]]:
     return found
 
 
-def with_bytes(value):
-    """Returns value with every "<bytes: N>" placeholder replaced by N bytes."""
+def placeholders_as(value, make):
+    """Returns value with every "<bytes: N>" placeholder replaced by make(N zero bytes)."""
     if isinstance(value, dict):
-        return {k: with_bytes(v) for k, v in value.items()}
+        return {k: placeholders_as(v, make) for k, v in value.items()}
     if isinstance(value, list):
-        return [with_bytes(v) for v in value]
+        return [placeholders_as(v, make) for v in value]
     if isinstance(value, str) and (m := BYTES.match(value)):
-        return bytes(int(m.group(1)))
+        return make(bytes(int(m.group(1))))
     return value
+
+
+def with_bytes(value):
+    """Returns value with its bytes placeholders as bytes (what msgpack carries)."""
+    return placeholders_as(value, bytes)
+
+
+def with_base64(value):
+    """Returns value with its bytes placeholders as JSON carries bytes: base64 text."""
+    return placeholders_as(value, lambda raw: base64.b64encode(raw).decode())
 
 
 def schema_of(suffix: str, role: str) -> wire.Spec | None:
@@ -104,17 +114,6 @@ def test_the_examples_in_the_protocol_doc_are_the_ones_cbgo_examples_generates()
 # --------------------------------------------------------------------- JSON Schemas (docs/schemas)
 
 SCHEMA_DIR = ROOT / "docs" / "schemas"
-
-
-def with_base64(value):
-    """Returns value with every "<bytes: N>" placeholder as JSON carries bytes: base64 text."""
-    if isinstance(value, dict):
-        return {k: with_base64(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [with_base64(v) for v in value]
-    if isinstance(value, str) and (m := BYTES.match(value)):
-        return base64.b64encode(bytes(int(m.group(1)))).decode()
-    return value
 
 
 @pytest.mark.parametrize(("suffix", "role", "text"), EXAMPLES,
