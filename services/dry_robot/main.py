@@ -31,7 +31,7 @@ from cbgo.runtime import Service, main_for
 from cbgo.services.dry_robot.robot import SymbolicRobot
 from cbgo.world import (
     Scene,
-    check_consistent,
+    failure_error,
     random_scene,
     read_scene_file,
     reset_refusal,
@@ -194,13 +194,12 @@ class DryRobot(Service):
         The world model keeps its scene consistent, so this finds nothing unless a fault (or a
         test's scripted robot) broke it; then the planner is told, rather than misled.
         """
-        problems = check_consistent(reply["scene"])
+        error, problems = failure_error(reply["error"], reply["scene"])
         if not problems:
             return reply
         self.counts["inconsistent"] += 1
         self.ctx.log.error("inconsistent scene after %s: %s", reply["error"], "; ".join(problems))
-        return {**reply, "error": f"{reply['error']}; the scene after it is inconsistent: "
-                                  + "; ".join(problems)}
+        return {**reply, "error": error}
 
     def _count(self, reply: dict) -> None:
         self.counts["actions"] += 1

@@ -34,7 +34,7 @@ from cbgo.services.mujoco_sim.build import CAMERAS
 from cbgo.services.mujoco_sim.engine import Sim
 from cbgo.services.mujoco_sim.render import Camera, RenderError
 from cbgo.services.mujoco_sim.skills import Robot
-from cbgo.world import check_consistent, read_scene_file, workspace_info
+from cbgo.world import failure_error, read_scene_file, workspace_info
 
 
 @dataclass
@@ -199,12 +199,11 @@ class MujocoSim(Service):
         The observation is built to be consistent (`observe`); a contradiction left is a gap
         in it, and the planner must hear of it rather than replan on a wrong world.
         """
-        problems = check_consistent(scene)
-        if not problems:
-            return error
-        self.counts["inconsistent"] += 1
-        self.ctx.log.error("inconsistent scene after %s: %s", error, "; ".join(problems))
-        return f"{error}; the scene after it is inconsistent: " + "; ".join(problems)
+        checked, problems = failure_error(error, scene)
+        if problems:
+            self.counts["inconsistent"] += 1
+            self.ctx.log.error("inconsistent scene after %s: %s", error, "; ".join(problems))
+        return checked
 
     def on_reset(self, query: dict) -> dict:
         """sim/reset: a random scene from a seed, or exactly the given scene, settled."""

@@ -10,7 +10,8 @@
 - `cbgo.world.workspace`: the workspace of the contract (`workspace_info`, the ``cbgo/sim/info``
   answer) and whether a scene fits in it (`workspace_problems`; `reset_refusal`, the
   judgement of ``cbgo/sim/reset``);
-- `cbgo.world.consistency`: whether a reported scene can be the truth (`check_consistent`).
+- `cbgo.world.consistency`: whether a reported scene can be the truth (`check_consistent`,
+  `failure_error`).
 
 Pure Python, NumPy and YAML: no Zenoh, no torch.
 """
@@ -27,7 +28,7 @@ from cbgo.world.actions import (
     feasible,
     gripper_room,
 )
-from cbgo.world.consistency import check_consistent
+from cbgo.world.consistency import check_consistent, failure_error
 from cbgo.world.files import read_scene_file
 from cbgo.world.generate import random_scene
 from cbgo.world.grid import DEFAULT_GRID, Grid
@@ -41,7 +42,7 @@ from cbgo.world.workspace import (
 
 __all__ = [
     "DEFAULT_GRID", "MOVES", "OBJECT_AGNOSTIC", "Failure", "Grid", "InfeasibleAction", "Robot",
-    "Scene", "SceneObject", "apply", "candidates", "check", "check_consistent", "failures",
-    "feasible", "gripper_room", "random_scene", "read_scene_file", "reset_refusal", "table_area",
-    "workspace_info", "workspace_problems",
+    "Scene", "SceneObject", "apply", "candidates", "check", "check_consistent", "failure_error",
+    "failures", "feasible", "gripper_room", "random_scene", "read_scene_file", "reset_refusal",
+    "table_area", "workspace_info", "workspace_problems",
 ]

@@ -3,7 +3,8 @@
 After a failed action the world is whatever the failure left, and the planner replans from
 what the robot reports; a report that contradicts itself (a cup held and inside a drawer at
 once) makes every later decision wrong. `check_consistent` lists such contradictions in a
-contract scene body (``{objects, robot}``, or a whole ``cbgo/scene/state`` message):
+contract scene body (``{objects, robot}``, or a whole ``cbgo/scene/state`` message), and
+`failure_error` names them in a failed action's error, as both robots reply:
 
 - the world model's rules (`Scene.problems`): held objects rest on nothing, one place each, …;
 - ``inside`` and ``contains`` agree both ways (read from the message, before `Scene.from_dict`
@@ -82,3 +83,15 @@ def _floating(scene: Scene) -> list[str]:
                        f"{obj.position[2]:.2f} m high (it stands on something unnamed or is "
                        "falling)")
     return out
+
+
+def failure_error(error: str, scene: Scene | Mapping[str, Any]) -> tuple[str, list[str]]:
+    """Returns a failed action's error naming every contradiction in the scene after it.
+
+    Returns:
+        (the error, with the contradictions appended if any; the contradictions).
+    """
+    problems = check_consistent(scene)
+    if not problems:
+        return error, []
+    return f"{error}; the scene after it is inconsistent: " + "; ".join(problems), problems

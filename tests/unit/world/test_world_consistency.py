@@ -2,7 +2,7 @@
 
 from world_scenes import obj, world
 
-from cbgo.world import check_consistent, random_scene
+from cbgo.world import check_consistent, failure_error, random_scene
 
 
 def _body(scene):
@@ -60,3 +60,16 @@ def test_an_object_on_the_table_must_lie_on_it_lying_down_is_fine_floating_is_no
     assert check_consistent(body) == [
         "box1 is reported on the table, but its centre is 0.20 m high (it stands on something "
         "unnamed or is falling)"]
+
+
+
+def test_a_failure_error_names_the_contradictions_and_leaves_a_consistent_scene_alone():
+    scene = world(obj("drawer1", "drawer", (3, 1), open=True), obj("cup1", "cup"),
+                  holding="cup1", tcp_cell=(3, 1, 0))
+    body = _body(scene)
+    assert failure_error("stuck", body) == ("stuck", [])
+    _objects(body)["cup1"]["inside"] = "drawer1"
+    _objects(body)["drawer1"]["contains"] = ["cup1"]
+    error, problems = failure_error("stuck", body)
+    assert problems == check_consistent(body) and problems
+    assert error == "stuck; the scene after it is inconsistent: " + "; ".join(problems)
