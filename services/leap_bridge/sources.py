@@ -143,7 +143,8 @@ class ReplaySource:
 
 def _load_replay(path: str) -> list[tuple[float, list[dict], str | None]]:
     """Returns (t seconds, hands, user) per recorded hand frame."""
-    from cbgo.recording import load_toolbox_json, read_recording
+    from cbgo.recording import read_recording
+    from cbgo.toolbox import load_toolbox_json
 
     if path.endswith(".json"):
         return [(t, frame["hands"], None) for t, frame in load_toolbox_json(path)]
