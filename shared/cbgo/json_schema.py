@@ -8,7 +8,9 @@ windows) and nodes with checks of their own (the metric parameters, which only c
 description here); unknown fields are tolerated as on the wire.
 
 JSON has no bytes: a msgpack bin (`wire.Bytes`, e.g. a rendered image) is a base64 string in a
-JSON message, as Foxglove's JSON encoding writes it.
+JSON message, as Foxglove's JSON encoding writes it. `to_json` writes a wire message that way and
+`from_json` reads it back with the message's schema, which marks those strings
+(``contentEncoding: base64``), so a message survives msgpack -> JSON -> msgpack unchanged.
 
 ``python -m cbgo.json_schema DIR`` writes them as ``DIR/<key with / as .>.<role>.json``; the
 copies in ``docs/schemas/`` are checked against this module by the tests.
@@ -16,6 +18,8 @@ copies in ``docs/schemas/`` are checked against this module by the tests.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import json
 import sys
 from pathlib import Path
@@ -79,6 +83,45 @@ def _bounded(out: dict, lo, hi, lo_name: str, hi_name: str) -> dict[str, Any]:
     if hi is not None:
         out[hi_name] = hi
     return out
+
+
+def to_json(value: Any) -> Any:
+    """Returns a decoded wire message as JSON-ready data: bytes become base64 strings."""
+    if isinstance(value, bytes):
+        return base64.b64encode(value).decode("ascii")
+    if isinstance(value, dict):
+        return {k: to_json(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [to_json(v) for v in value]
+    return value
+
+
+def from_json(value: Any, schema: dict[str, Any]) -> Any:
+    """Returns JSON data as the wire message it came from: base64 strings back to bytes.
+
+    Args:
+        value: the parsed JSON.
+        schema: its JSON Schema (a key's schema from `for_key`, or one read from a file); only
+            its ``contentEncoding: base64`` nodes matter, the rest is walked through.
+
+    Raises:
+        ValueError: a string marked base64 is not base64.
+    """
+    branches = [b for b in schema.get("anyOf", []) if b.get("type") != "null"]
+    if branches:  # the wire's Nullable: null or one kind of value
+        schema = branches[0]
+    if isinstance(value, str) and schema.get("contentEncoding") == "base64":
+        try:
+            return base64.b64decode(value, validate=True)
+        except binascii.Error as e:
+            raise ValueError(f"not base64: {e}") from None
+    if isinstance(value, dict):
+        properties = schema.get("properties", {})
+        extra = schema.get("additionalProperties", {})
+        return {k: from_json(v, properties.get(k, extra)) for k, v in value.items()}
+    if isinstance(value, list):
+        return [from_json(v, schema.get("items", {})) for v in value]
+    return value
 
 
 def for_key(suffix: str, role: str = "message") -> dict[str, Any]:

@@ -2,9 +2,14 @@
 
 A cbgo recording is an ordinary MCAP file (https://mcap.dev/spec), readable by any MCAP tool:
 
-- one channel per Zenoh key; the channel topic is the full key (``cbgo/hands/frame``) and its
-  ``message_encoding`` is ``msgpack``. Channels have no schema (schema id 0): msgpack is
-  self-describing, and the MCAP registry lets self-describing encodings omit the schema;
+- one channel per Zenoh key; the channel topic is the full key (``cbgo/hands/frame``). With
+  the default encoding ``msgpack`` its ``message_encoding`` is ``msgpack`` and it has no schema
+  (schema id 0): msgpack is self-describing, and the MCAP registry lets self-describing
+  encodings omit the schema. With encoding ``json`` (for Foxglove; `cbgo.foxglove.channels`)
+  each message is checked against its key's contract and written as JSON with the key's JSON
+  Schema (schema encoding ``jsonschema``), and the derived channels ``foxglove/scene``,
+  ``foxglove/transforms`` and ``foxglove/log`` are written beside them; a message that breaks
+  the contract is not written but counted per key (`Recorder.rejected`);
 - a message's ``log_time`` is when the recorder received it, its ``publish_time`` the message's
   own ``ts`` when that is a finite number >= 0, else the receive time (both in ns since the Unix
   epoch); ``sequence`` counts the messages of each channel from 0;
@@ -15,6 +20,10 @@ A cbgo recording is an ordinary MCAP file (https://mcap.dev/spec), readable by a
   section, so ``mcap info`` and seeking readers work. The file is complete only after
   `Recorder.close`; a recorder killed with SIGKILL leaves a file that `read_recording` rejects.
 
+`read_recording` reads both encodings and gives every message as its msgpack payload (a JSON
+one re-encoded; bytes fields come back from their base64); derived ``foxglove.*`` channels are
+not wire messages and are left out (`RecordingInfo.derived` counts them).
+
 The gesture toolbox's JSON hand recordings are read by `cbgo.toolbox` (`load_toolbox_json`,
 re-exported here).
 """
@@ -24,6 +33,7 @@ from __future__ import annotations
 import datetime
 import functools
 import json
+import logging
 import math
 import socket
 import struct
@@ -40,7 +50,9 @@ from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
 import cbgo
 from cbgo import wire
-from cbgo.errors import RecordingError
+from cbgo.errors import RecordingError, RejectedMessage
+from cbgo.foxglove.channels import MESSAGE_ENCODING as JSON_ENCODING
+from cbgo.foxglove.channels import JsonChannels, is_derived, wire_payload
 from cbgo.keys import DEFAULT_PREFIX
 
 # The toolbox JSON reader moved to cbgo.toolbox; its names stay importable from here.
@@ -48,11 +60,13 @@ from cbgo.toolbox import TOOLBOX_DEVICE, load_toolbox_json  # noqa: F401
 
 PROFILE = "cbgo"
 MESSAGE_ENCODING = "msgpack"
+ENCODINGS = (MESSAGE_ENCODING, JSON_ENCODING)
 METADATA_START = "cbgo"
 METADATA_END = "cbgo.end"
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
                 "none": CompressionType.NONE}
 DEFAULT_CHUNK_BYTES = 1 << 20  # 1 MiB: ~2 s of hand frames at 120 Hz per compressed chunk
+_log = logging.getLogger("cbgo.recording")
 _U32 = 1 << 32  # MCAP sequence numbers are uint32
 _MAX_NS = (1 << 63) - 1
 
@@ -117,17 +131,24 @@ class Recorder:
         profile: the MCAP header profile.
         compression: ``zstd``, ``lz4`` or ``none``.
         chunk_bytes: uncompressed size at which a chunk is closed and compressed.
+        encoding: ``msgpack`` (payloads as received) or ``json`` (checked, JSON with schemas,
+            and the derived Foxglove channels).
+        metadata: extra entries of the start metadata record (`cbgo export` names its source).
 
     Raises:
-        RecordingError: the file cannot be created, or the compression is unknown.
+        RecordingError: the file cannot be created, or the compression or encoding is unknown.
     """
 
     def __init__(self, path: str | Path, *, prefix: str = DEFAULT_PREFIX,
                  keys: Iterable[str] = (), profile: str = PROFILE,
-                 compression: str = "zstd", chunk_bytes: int = DEFAULT_CHUNK_BYTES):
+                 compression: str = "zstd", chunk_bytes: int = DEFAULT_CHUNK_BYTES,
+                 encoding: str = MESSAGE_ENCODING, metadata: dict[str, str] | None = None):
         if compression not in COMPRESSIONS:
             raise RecordingError(f"unknown compression {compression!r}; use one of "
                                  f"{', '.join(COMPRESSIONS)}")
+        if encoding not in ENCODINGS:
+            raise RecordingError(f"unknown encoding {encoding!r}; use one of "
+                                 f"{', '.join(ENCODINGS)}")
         self.path = Path(path)
         try:
             self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
@@ -139,14 +160,19 @@ class Recorder:
         self._channels: dict[str, int] = {}
         self._stats: dict[str, KeyStats] = {}
         self._closed = False
+        self.encoding = encoding
+        self._json = None  # JsonChannels, once the writer has started
+        self.rejected: dict[str, tuple[int, str]] = {}  # key -> (count, last reason); json only
         self.started_ns = time.time_ns()
         self._writer.start(profile=profile,
                            library=f"cbgo/{cbgo.__version__}; {LIBRARY_IDENTIFIER}")
         self._writer.add_metadata(METADATA_START, {
             "cbgo_version": cbgo.__version__, "prefix": prefix, "keys": json.dumps(list(keys)),
             "start_time_ns": str(self.started_ns), "start_time": _iso(self.started_ns),
-            "host": socket.gethostname(),
+            "host": socket.gethostname(), "encoding": encoding, **(metadata or {}),
         })
+        if encoding == JSON_ENCODING:
+            self._json = JsonChannels(self._writer, prefix)
 
     def __enter__(self) -> Recorder:
         return self
@@ -168,13 +194,17 @@ class Recorder:
             receive_time_ns: when it arrived, ns since the Unix epoch (now if None).
 
         Returns:
-            False if the recorder is already closed (the message is dropped), else True.
+            False if the recorder is already closed (the message is dropped), else True (also
+            for a message the json encoding rejected: see `rejected`).
         """
         received = time.time_ns() if receive_time_ns is None else int(receive_time_ns)
         published = publish_time_ns(payload, received)  # decoded outside the lock
         with self._lock:
             if self._closed:
                 return False
+            if self._json is not None:
+                self._write_json(key, payload, received, published)
+                return True
             channel = self._channels.get(key)
             if channel is None:
                 channel = self._writer.register_channel(key, MESSAGE_ENCODING, 0)
@@ -187,6 +217,19 @@ class Recorder:
             stats.bytes += len(payload)
             stats.last_ns = received
         return True
+
+    def _write_json(self, key: str, payload: bytes, received: int, published: int) -> None:
+        try:
+            written = self._json.write(key, payload, received, published)
+        except RejectedMessage as e:
+            count, _ = self.rejected.get(key, (0, ""))
+            self.rejected[key] = (count + 1, str(e))
+            return
+        for topic, size in written:
+            stats = self._stats.setdefault(topic, KeyStats(first_ns=received))
+            stats.count += 1
+            stats.bytes += size
+            stats.last_ns = received
 
     def stats(self) -> dict[str, KeyStats]:
         """Returns a snapshot of what was written, per key, in first-seen order."""
@@ -259,10 +302,12 @@ class RecordingInfo:
         path: the file.
         profile: the header's profile (``cbgo`` for files written by `Recorder`).
         library: the header's library string.
-        counts: message count per key (channel topic), in channel order.
+        counts: message count per key (channel topic), in channel order; wire channels only.
         start_ns: log time of the first message (0 if there is none).
         end_ns: log time of the last message.
         metadata: every metadata record, by name.
+        derived: message count per derived Foxglove channel (``foxglove/scene``...).
+        encodings: the message encoding of each channel, derived ones included.
     """
 
     path: Path
@@ -272,6 +317,15 @@ class RecordingInfo:
     start_ns: int = 0
     end_ns: int = 0
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    derived: dict[str, int] = field(default_factory=dict)
+    encodings: dict[str, str] = field(default_factory=dict)
+
+    def count(self, channel, schema, n: int = 1) -> None:
+        """Adds n messages of an MCAP channel (with its schema, or None) to the counts."""
+        name = schema.name if schema is not None else None
+        table = self.derived if is_derived(name) else self.counts
+        table[channel.topic] = table.get(channel.topic, 0) + n
+        self.encodings[channel.topic] = channel.message_encoding
 
     @property
     def message_count(self) -> int:
@@ -336,12 +390,13 @@ def recording_info(path: str | Path) -> RecordingInfo:
             info.metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
             if summary is not None and summary.statistics is not None:
                 stats = summary.statistics
-                info.counts = {c.topic: stats.channel_message_counts.get(cid, 0)
-                               for cid, c in summary.channels.items()}
+                for cid, channel in summary.channels.items():
+                    info.count(channel, summary.schemas.get(channel.schema_id),
+                               stats.channel_message_counts.get(cid, 0))
                 info.start_ns, info.end_ns = stats.message_start_time, stats.message_end_time
                 return info
-            for _schema, channel, message in reader.iter_messages(log_time_order=False):
-                info.counts[channel.topic] = info.counts.get(channel.topic, 0) + 1
+            for schema, channel, message in reader.iter_messages(log_time_order=False):
+                info.count(channel, schema)
                 info.start_ns = min(info.start_ns or message.log_time, message.log_time)
                 info.end_ns = max(info.end_ns, message.log_time)
         except _CORRUPT as e:
@@ -412,23 +467,62 @@ def read_recording(path: str | Path, keys: Iterable[str] | str | None = None
     path, stream, reader, _header, summary = _open_reader(path)
     topics = None
     if keys is not None and summary is not None:
-        topics = [c.topic for c in summary.channels.values() if matches(c.topic)]
+        topics = [c.topic for c in summary.channels.values() if matches(c.topic)
+                  and not is_derived(_schema_name(summary, c))]
     return _iterate(path, stream, reader, topics, matches)
 
 
 def _iterate(path: Path, stream, reader, topics, matches: KeyFilter
              ) -> Iterator[RecordedMessage]:
+    bad: dict[str, int] = {}
+    try:
+        yield from _messages(path, stream, reader, topics, matches, bad)
+    finally:
+        for key, n in bad.items():
+            _log.warning("%s: skipped %d unreadable JSON message%s on %s", path, n,
+                         "s" if n != 1 else "", key)
+
+
+def _messages(path: Path, stream, reader, topics, matches: KeyFilter, bad: dict[str, int]
+              ) -> Iterator[RecordedMessage]:
     with stream:
         if topics == []:
             return
         messages = reader.iter_messages(topics=topics, log_time_order=True)
         while True:
             try:
-                _schema, channel, record = next(messages)
+                schema, channel, record = next(messages)
             except StopIteration:
                 return
             except _CORRUPT as e:
                 raise RecordingError(f"{path} is corrupt ({type(e).__name__}: {e})") from None
-            if matches(channel.topic):
+            if not matches(channel.topic) or is_derived(schema.name if schema else None):
+                continue
+            payload = _payload(channel, schema, record, bad)
+            if payload is not None:
                 yield RecordedMessage(channel.topic, record.log_time, record.publish_time,
-                                      bytes(record.data), record.sequence)
+                                      payload, record.sequence)
+
+
+def _schema_name(summary, channel) -> str | None:
+    schema = summary.schemas.get(channel.schema_id)
+    return schema.name if schema is not None else None
+
+
+def _payload(channel, schema, record, bad: dict[str, int]) -> bytes | None:
+    """Returns a record's msgpack payload: as stored, or re-encoded from a JSON channel.
+
+    A JSON message that cannot be read back (corrupt JSON, bad base64) is skipped, counted per
+    key in `bad` and logged once per key: replaying it byte for byte would put JSON, not
+    msgpack, on the wire.
+    """
+    if channel.message_encoding != JSON_ENCODING:
+        return bytes(record.data)
+    try:
+        return wire_payload(bytes(record.data), schema.data if schema else None)
+    except (ValueError, TypeError) as e:  # json.JSONDecodeError is a ValueError
+        bad[channel.topic] = bad.get(channel.topic, 0) + 1
+        if bad[channel.topic] == 1:
+            _log.warning("skipping an unreadable JSON message on %s (%s); the count follows "
+                         "at the end", channel.topic, e)
+        return None
