@@ -6,10 +6,10 @@ A service named ``static-gesture`` lives in ``services/static_gesture/`` (import
 compose service ``static-gesture``. A service exists once its package has a ``main`` module;
 `cbgo up` starts only those, and lists nothing it cannot run.
 
-The seven pipeline services are the default set. An *alternative* (``replaces`` set) is
-another implementation of a default service's keys, e.g. dry-robot for mujoco-sim: it is
-never started by default, and never together with the service it replaces (two answers on
-``cbgo/robot/act`` would be wrong); `swap` puts it in that service's place.
+The seven pipeline services and web (the live page) are the default set. An *alternative*
+(``replaces`` set) is another implementation of a default service's keys, e.g. dry-robot for
+mujoco-sim: it is never started by default, and never together with the service it replaces
+(two answers on ``cbgo/robot/act`` would be wrong); `swap` puts it in that service's place.
 """
 
 from __future__ import annotations
@@ -58,8 +58,11 @@ class ServiceInfo:
             return False
 
 
-# In pipeline order: the order `cbgo up` starts them in.
+# In pipeline order: the order `cbgo up` starts them in. web, which only watches (and
+# forwards STOP and feedback from its page), comes first so that it sees the others' first
+# messages.
 SERVICES: tuple[ServiceInfo, ...] = (
+    ServiceInfo("web", 19, "a live web page of what cbgo sees and decides; STOP and feedback"),
     ServiceInfo("leap-bridge", 3,
                 "hand frames from a Leap Motion, a recording or a simulated user"),
     ServiceInfo("static-gesture", 4, "per-frame static gesture probabilities (Bayesian MLP)"),

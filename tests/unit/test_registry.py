@@ -10,8 +10,8 @@ def names(services):
     return [s.name for s in services]
 
 
-def test_the_default_set_is_the_seven_pipeline_services_without_alternatives():
-    assert names(registry.defaults()) == ["leap-bridge", "static-gesture", "dynamic-gesture",
+def test_the_default_set_is_web_and_the_seven_pipeline_services_without_alternatives():
+    assert names(registry.defaults()) == ["web", "leap-bridge", "static-gesture", "dynamic-gesture",
                                           "episode", "intent", "planner", "mujoco-sim"]
     assert "dry-robot" not in names(registry.available())
     assert names(registry.alternatives("mujoco-sim")) == ["dry-robot"]
