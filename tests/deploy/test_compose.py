@@ -221,7 +221,20 @@ def test_the_router_publishes_port_7447_on_the_host(services):
     # The host's port is CBGO_PORT, 7447 by default.
     assert ("${CBGO_PORT:-7447}", "7447") in published_ports(services[ROUTER])
     for name in SERVICE_NAMES:
+        if name == "web":
+            continue
         assert not services[name].get("ports"), f"{name} is a client and listens on nothing"
+
+
+def test_web_publishes_its_page_on_the_hosts_loopback_and_no_zenoh_port(services):
+    # web is a Zenoh client like the others; its one port is the page's HTTP port, published
+    # on 127.0.0.1 by default because the page can stop the robot.
+    web = services["web"]
+    assert published_ports(web) == [("${CBGO_WEB_PORT:-8080}", "8080")]
+    assert web["ports"][0]["host_ip"] == "${CBGO_WEB_BIND:-127.0.0.1}"
+    env = environment(web)
+    assert env["CBGO_HTTP_PORT"] == "8080" and env["CBGO_HTTP_HOST"] == "0.0.0.0"
+    assert env["ZENOH_CONNECT"] == ROUTER_ENDPOINT
 
 
 def test_every_service_restarts_unless_stopped_under_an_init_and_stops_in_time(services):
