@@ -269,9 +269,13 @@ class Stack:
         self.close()
 
     def env(self) -> dict[str, str]:
-        """Returns the environment children run with (the endpoint and prefix set)."""
+        """Returns the environment children run with (the endpoint and prefix set).
+
+        web serves its page on any free port (``CBGO_HTTP_PORT=0``; its status says which), so
+        stacks of tests that run at the same time never fight over port 8080.
+        """
         return {**os.environ, "PYTHONUNBUFFERED": "1", "ZENOH_CONNECT": self.endpoint,
-                "CBGO_PREFIX": self.prefix}
+                "CBGO_PREFIX": self.prefix, "CBGO_HTTP_PORT": "0"}
 
     def spawn(self, name: str, argv: list[str], env: dict[str, str] | None = None) -> Process:
         """Starts any command as a child process named `name`."""
