@@ -22,9 +22,10 @@ observations, shuffled.
 
 **Repairable intents** (``repairable=True``; not in the paper): step 2 also draws the
 (action, object) pairs that are infeasible only through preconditions the planner repairs
-(`cbgo.services.intent.decide.REPAIRABLE`: a closed drawer it opens, a held object it places
+(`cbgo.world.repairs.REPAIRABLE`: a closed drawer it opens, a held object it places
 first) and that are feasible once those repairs are applied to the scene
-(`decide.after_repairs`: a held object with no free place on the table cannot be set aside).
+(`cbgo.world.repairs.after_repairs`: a held object with no free place on the table cannot be
+set aside).
 The intent is uniform over the feasible and the repairable pairs together. Step 4 reads the
 table in the target's state after the repairs, the state in which the request is feasible: put
 into a closed drawer gets the open drawer's gesture (D4: user1 ``five``, user2 ``point``);
@@ -53,7 +54,7 @@ array                     dtype      meaning
 ``feasible``              ?  (N,A,K) action × slot feasible in the scene (moves and place:
                                      the same for every object)
 ``repairable``            ?  (N,A,K) action × slot infeasible, but feasible after the
-                                     planner's repairs (`decide.after_repairs`)
+                                     planner's repairs (`cbgo.world.repairs.after_repairs`)
 ``repaired``              ?  (N,)    the intent is one of those (only with ``repairable``)
 ``action``                i1 (N,)    the intended action, index into ``meta.actions``
 ``target``                i1 (N,)    the intended object's slot
@@ -77,9 +78,9 @@ from typing import Any
 import numpy as np
 
 from cbgo.errors import ConfigError
-from cbgo.services.intent.decide import after_repairs
 from cbgo.wire import ACTIONS, OBJECT_TYPES
 from cbgo.world import DEFAULT_GRID, OBJECT_AGNOSTIC, Grid, Scene, feasible, random_scene
+from cbgo.world.repairs import after_repairs
 
 DATASETS = ("D1", "D2", "D3", "D4", "D5")
 MAX_OBJECTS = 7

@@ -9,9 +9,9 @@ Candidates are scored under the full joint p(action, object) — never argmax-th
 
 Only candidates whose preconditions hold (`cbgo.world.actions`) compete; with
 ``accept_repairable`` a candidate whose every unmet precondition the planner repairs with one
-action (`REPAIRABLE`: a closed drawer is opened, a held object placed first) and that is
-feasible once repaired (`after_repairs`) competes too. The best one's probability is the
-`confidence`. Then:
+action (`cbgo.world.repairs.REPAIRABLE`: a closed drawer is opened, a held object placed
+first) and that is feasible once repaired (`after_repairs`) competes too. The best one's
+probability is the `confidence`. Then:
 
 - ``accepted``: the best feasible candidate reaches ``min_confidence``;
 - ``low_confidence``: it does not; no action is taken (action and object null);
@@ -34,50 +34,14 @@ import numpy as np
 from cbgo.errors import ConfigError
 from cbgo.wire import ACTIONS
 from cbgo.world import (
-    DEFAULT_GRID,
     MOVES,
     OBJECT_AGNOSTIC,
-    Failure,
-    Grid,
-    InfeasibleAction,
     Scene,
-    apply,
     failures,
-    feasible,
 )
+from cbgo.world.repairs import after_repairs, only_repairable
 
 AGNOSTIC_INDEX = np.array([a in OBJECT_AGNOSTIC for a in ACTIONS])
-# Failure codes whose repair is one action on a known object (open that drawer; place the held
-# object first), both in the planner's repair rules (services/planner/repair.py). The planner
-# repairs more (not_free, not_holding, ...), but those repairs move or fetch other objects (a
-# tower taken off, a source chosen) and no model is trained or measured on such intents.
-REPAIRABLE = frozenset({"drawer_closed", "holding"})
-
-
-def only_repairable(found: Sequence[Failure]) -> bool:
-    """Returns whether there are unmet preconditions and the planner repairs every one."""
-    return bool(found) and all(f.code in REPAIRABLE for f in found)
-
-
-def after_repairs(action: str, obj: str, scene: Scene,
-                  grid: Grid = DEFAULT_GRID) -> Scene | None:
-    """Returns the scene once the planner has repaired `action` on `obj`, else None.
-
-    None unless `action` is infeasible, every unmet precondition is one the planner repairs
-    (`REPAIRABLE`), each repair applies (`cbgo.world.apply`), and `action` is feasible
-    afterwards. Moves and place have no such preconditions.
-    """
-    found = failures(action, obj, scene, grid=grid)
-    if not only_repairable(found) or any(f.repair is None for f in found):
-        return None
-    repaired = scene
-    try:
-        for f in found:
-            repaired = apply(*f.repair, None, repaired, grid)
-    except InfeasibleAction:  # e.g. no free place to set the held object down
-        return None
-    return repaired if feasible(action, obj, repaired, grid=grid) else None
-
 
 
 @dataclass

@@ -31,14 +31,17 @@ from cbgo.services.mujoco_sim.plan import (
     grasp_half_width,
     tcp_below_top,
 )
-from cbgo.world import DEFAULT_GRID, Grid, Scene, random_scene, reset_refusal
+from cbgo.world import DEFAULT_GRID, Grid, Scene, random_scene
+from cbgo.world import workspace as world_workspace
+from cbgo.world.workspace import startable_scene
 
 SETTLE_S = 0.4
 POSITION_TOL = 0.03  # m, x/y of a settled object against its symbolic position
 
 
-class SceneError(ValueError):
-    """The scene cannot be built (inconsistent, or an object does not fit)."""
+# The scene cannot be built (refused by the world model or the workspace, or the robot fits
+# nowhere): the robot cells' one error for it.
+SceneError = world_workspace.SceneError
 
 
 @dataclass
@@ -63,13 +66,7 @@ def load(scene: Scene | dict, grid: Grid = DEFAULT_GRID) -> Loaded:
         SceneError: the scene breaks the world model's rules or does not fit in the workspace
             (`cbgo.world.reset_refusal`), or the robot cannot be placed.
     """
-    if isinstance(scene, dict):
-        scene = Scene.from_dict(scene)
-    reason = reset_refusal(scene, grid)
-    if reason is not None:  # judged before building: never accepted to fail later
-        raise SceneError(reason)
-    scene = scene.copy()
-    scene.settle()
+    scene = startable_scene(scene, grid)  # judged before building: never accepted to fail later
     objects = [{"name": o.name, "type": o.type, "size": o.size, "position": list(o.position)}
                for o in scene.objects]
     points = [grid.column_xy(c) for c in grid.columns()]

@@ -9,7 +9,8 @@ import json
 
 import pytest
 
-from cbgo.bench.latency import MEASURES, QUICK_EPISODES
+from cbgo.bench.latency import QUICK_EPISODES
+from cbgo.bench.latency_figures import MEASURES
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,8 @@ CLI = [sys.executable, "-m", "cbgo.cli.main"]
 
 def test_the_paper_example_on_dry_robot_ends_with_the_cup_in_the_drawer(stack):
     stack.start_router()
-    stack.start_service("dry-robot", "--action-s", "0.05", "--period-s", "0.2")
+    stack.start_service("dry-robot", "--action-s", "0.05", "--state-rate-hz", "5",
+                        "--robot-rate-hz", "5")
     stack.start_service("planner")
     stack.wait_alive(["router", "dry-robot", "planner"])
     plans = stack.collect("plan/status")

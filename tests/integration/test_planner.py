@@ -62,7 +62,7 @@ def symbolic(*flags):
 
 
 def test_the_paper_example_runs_on_a_symbolic_robot_process(stack):
-    start(stack, symbolic("--period-s", "0.2"), "symbolic-robot")
+    start(stack, symbolic("--state-rate-hz", "5", "--robot-rate-hz", "5"), "symbolic-robot")
     plans = stack.collect("plan/status")
     scenes = stack.collect("scene/state")
     reset(stack, PAPER_SCENE)

@@ -319,7 +319,8 @@ def test_the_real_planner_commands_dry_robot_and_the_cli_works_over_tls(tls_stac
                                          f"cbgo.services.{name.replace('-', '_')}",
                                          *cfg_flags(certs, name)],
                     env={"ZENOH_CONFIG": str(CLIENT_CONFIG), "CBGO_PREFIX": prefix,
-                         "CBGO_PERIOD_S": "0.2", "CBGO_ACTION_S": "0"})
+                         "CBGO_STATE_RATE_HZ": "5", "CBGO_ROBOT_RATE_HZ": "5",
+                         "CBGO_ACTION_S": "0"})
     operator, intent = sessions["operator"], sessions["intent"]
     end = time.monotonic() + 60
     while not {"dry-robot", "planner"} <= alive_names(operator, prefix):

@@ -172,8 +172,8 @@ def test_a_stop_between_actions_does_not_stop_the_next_one(bus):
 def test_settings_refuse_what_cannot_work(tmp_path):
     with pytest.raises(ConfigError, match="action_s"):
         DryRobotSettings(action_s=-1)
-    with pytest.raises(ConfigError, match="period_s"):
-        DryRobotSettings(period_s=0)
+    with pytest.raises(ConfigError, match="state_rate_hz"):
+        DryRobotSettings(state_rate_hz=0)
     with pytest.raises(ConfigError, match="does not exist"):
         DryRobotSettings(scene=str(tmp_path / "missing.json"))
     bad = tmp_path / "bad.json"

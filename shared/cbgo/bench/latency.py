@@ -10,18 +10,16 @@ something, ``thumbsup`` (→ ``place``). The bench waits for the intent and, for
 for the end of its plan before the next episode; after an unexpected intent or a failed plan it
 resets the world (``cbgo/sim/reset``).
 
-The robot: the ``dry-robot`` service when this installation has it (``--robot auto``, the
-default, or ``--robot dry-robot``), run with ``--action-s`` (0: actions end at once, so episodes
-stay short) and its scene period set to 1/``--scene-rate-hz``; else (or with ``--robot bench``)
-the bench answers ``cbgo/robot/act`` itself from the world model (`cbgo.world.apply`) and
-publishes ``cbgo/scene/state`` at ``--scene-rate-hz`` and after each action. The scene rate
+The robot: the ``dry-robot`` service (the world model as a robot cell, `cbgo.robot_cell`), run
+with ``--action-s`` (0: actions end at once, so episodes stay short) and its scene rate set to
+``--scene-rate-hz`` (``--state-rate-hz``; it also publishes after each action). The scene rate
 matters: the planner plans on a scene at least as new as the intent, so it waits for the next
 ``cbgo/scene/state`` (up to one period) before the first action; 20 Hz is mujoco-sim's default
-rate. The output says which robot was used.
+rate.
 
 Clock and time stamps: every process runs on this host, so the wall clock (``time.time()``) is
 one clock for all of them. ``ts`` fields are taken by the producer just before publishing;
-"received" times are taken in this process's Zenoh callbacks (and the bench robot's queryable).
+"received" times are taken in this process's Zenoh callbacks.
 
 Measures, per episode (``--warmup`` episodes first are played but not counted):
 
@@ -36,11 +34,11 @@ Measures, per episode (``--warmup`` episodes first are played but not counted):
   contains the debounce by construction (= the previous measure + ``debounce_s``).
 - **frame → static probabilities received**: for every frame with a hand, arrival of the
   ``cbgo/gestures/static`` with the frame's ``seq`` − the frame's ``ts``.
-- **intent → first robot action**: arrival of the first ``cbgo/robot/act`` query of that intent's
-  plan at the robot − arrival of the intent at the bench (the planner receives it at the same
-  moment). With the dry-robot, whose query arrivals the bench cannot see, the ``ts`` of its
-  ``cbgo/robot/state`` announcing the action (``action`` set) stands in: the dry-robot stamps
-  and publishes it as its handler starts the action.
+- **intent → first robot action**: the start of the first robot action of that intent's plan −
+  arrival of the intent at the bench (the planner receives it at the same moment). The bench
+  cannot see the robot/act query arrive, so the ``ts`` of the dry-robot's ``cbgo/robot/state``
+  announcing the action (``action`` set) stands for it: the dry-robot stamps and publishes it
+  as its handler starts the action.
 
 A stage breakdown of end condition → intent (summary stamped, summary received, intent stamped)
 shows where the time goes. Goals (loopback): end condition → intent p50 ≤ 20 ms and p99 ≤ 50 ms;
@@ -64,12 +62,21 @@ import sys
 import tempfile
 import threading
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 
-import numpy as np
-
-from cbgo import keys, registry, wire
+from cbgo import keys, wire
+from cbgo.bench.latency_figures import (
+    Frame,
+    Observed,
+    Run,
+    episode_record,
+    goals,
+    measure,
+    report,
+    static_latencies,
+    tally,
+)
 
 PIPELINE = ("leap-bridge", "static-gesture", "dynamic-gesture", "episode", "intent", "planner")
 QUICK_EPISODES = 4
@@ -86,9 +93,6 @@ SCENE = {  # a full cup, a closed drawer, a box, inside the workspace (the demo'
 }
 TARGET = "cup1"
 GESTURE_FOR = {False: ("grab", "pick_up"), True: ("thumbsup", "place")}  # by "holding?"
-MEASURES = ("end_condition_to_intent", "last_hand_frame_to_intent", "frame_to_static",
-            "intent_to_first_robot_action")
-STAGES = ("summary_stamped", "summary_received", "intent_stamped", "intent_received")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -100,9 +104,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="episodes played first and not counted (first-call costs) [1]")
     parser.add_argument("--out", default="out/bench-latency/results.json",
                         help="results JSON [out/bench-latency/results.json]")
-    parser.add_argument("--robot", choices=("auto", "dry-robot", "bench"), default="auto",
-                        help="who answers robot/act: the dry-robot service, or the bench "
-                             "itself from the world model; auto: dry-robot if built [auto]")
     parser.add_argument("--debounce-s", type=float, default=0.15,
                         help="the episode service's debounce, s [0.15]")
     parser.add_argument("--rate-hz", type=float, default=60.0,
@@ -130,26 +131,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 # ============================================================================ observations
 
-
-@dataclass
-class Frame:
-    """What the bench keeps of one hand frame."""
-
-    ts: float
-    has_hand: bool
-    received: float
-
-
-@dataclass
-class Observed:
-    """Everything the bench's own subscriptions saw, with arrival times (one lock for all)."""
-
-    frames: dict[int, Frame] = field(default_factory=dict)
-    static: dict[int, float] = field(default_factory=dict)  # frame seq -> first arrival
-    summaries: dict[str, tuple[float, dict]] = field(default_factory=dict)
-    intents: dict[str, tuple[float, dict]] = field(default_factory=dict)
-    plans: dict[str, tuple[float, dict]] = field(default_factory=dict)  # episode -> terminal
-    robot_actions: list[float] = field(default_factory=list)  # robot/state ts, action set
 
 
 class Tap:
@@ -212,111 +193,7 @@ class Tap:
             self.cond.notify_all()
 
 
-# ============================================================================ the bench robot
-
-
-class BenchRobot:
-    """A robot answered by this process from the world model; records each action's arrival.
-
-    Answers ``cbgo/robot/act`` (at once, `cbgo.world.apply`) and ``cbgo/sim/reset`` (a scene),
-    publishes ``cbgo/scene/state`` every 1/``rate_hz`` s and after each change.
-    """
-
-    def __init__(self, session, k: keys.Keys, rate_hz: float):
-        import zenoh
-
-        from cbgo.world import Scene
-
-        self.lock = threading.Lock()
-        self.scene = Scene.from_dict(SCENE)
-        self.seq = 0
-        self.acts: list[tuple[float, dict]] = []
-        self.stopping = threading.Event()
-        self._pub = session.declare_publisher(
-            k.of(keys.SCENE_STATE), congestion_control=zenoh.CongestionControl.BLOCK)
-        self._act_key, self._reset_key = k.of(keys.ROBOT_ACT), k.of(keys.SIM_RESET)
-        self._queryables = [session.declare_queryable(self._act_key, self._on_act),
-                            session.declare_queryable(self._reset_key, self._on_reset)]
-        self._thread = threading.Thread(target=self._publish_periodically, args=(rate_hz,),
-                                        name="bench-robot-scene", daemon=True)
-        self._thread.start()
-
-    def _message(self) -> dict:
-        """Returns the world as a scene/state message (call with the lock held)."""
-        self.seq += 1
-        return self.scene.to_message(self.seq, time.time())
-
-    def _publish_periodically(self, rate_hz: float) -> None:
-        while not self.stopping.wait(1.0 / rate_hz):
-            with self.lock:
-                message = self._message()
-            self._pub.put(wire.encode(message))
-
-    def _on_act(self, query) -> None:
-        arrival = time.time()
-        from cbgo.world import InfeasibleAction, apply
-
-        request = wire.decode(query.payload.to_bytes())
-        with self.lock:
-            self.acts.append((arrival, request))
-            try:
-                self.scene = apply(request["action"], request.get("object"),
-                                   request.get("params") or {}, self.scene)
-                ok, error = True, None
-            except InfeasibleAction as e:
-                ok, error = False, f"refused: {e}"
-            scene = self._message()
-        reply = {"v": wire.SCHEMA_VERSION, "ok": ok, "error": error, "duration_s": 0.0,
-                 "scene": scene}
-        self._pub.put(wire.encode(scene))
-        self._reply(query, self._act_key, reply, "robot/act")
-
-    def _on_reset(self, query) -> None:
-        from cbgo.world import Scene
-
-        request = wire.decode(query.payload.to_bytes())
-        with self.lock:
-            self.scene = Scene.from_dict(request.get("scene") or SCENE)
-            self.scene.settle()
-            scene = self._message()
-        self._pub.put(wire.encode(scene))
-        reply = {"v": wire.SCHEMA_VERSION, "ok": True, "error": None, "scene": scene}
-        self._reply(query, self._reset_key, reply, "sim/reset")
-
-    @staticmethod
-    def _reply(query, key: str, reply: dict, suffix: str) -> None:
-        # Checked against the contract like any service's reply: the bench must not cheat.
-        wire.validate(reply, wire.REPLY_SCHEMAS[suffix], key)
-        try:
-            query.reply(key, wire.encode(reply))
-        finally:
-            query.drop()
-
-    def first_act_after(self, since: float, until: float) -> float | None:
-        """Returns the arrival of the first robot/act query within [since, until), if any."""
-        with self.lock:
-            return next((t for t, _ in self.acts if since <= t < until), None)
-
-    def close(self) -> None:
-        """Stops the scene publisher."""
-        self.stopping.set()
-        self._thread.join(timeout=1.0)
-
-
 # ============================================================================ episodes
-
-
-@dataclass
-class Run:
-    """One played episode: what was asked and when."""
-
-    index: int
-    gesture: str
-    expected: str
-    played: float
-    duration_s: float
-    finished: float = 0.0
-    reset_after: bool = False
 
 
 def _scenario(index: int, gesture: str, args: argparse.Namespace) -> dict:
@@ -399,217 +276,11 @@ class Driver:
         time.sleep(0.2)  # let the new scene reach intent, planner and the leap-bridge
 
 
-# ============================================================================ measuring
-
-
-def figures(values_s: list[float]) -> dict:
-    """Returns n, p50, p90, p99, max, min in ms of a list of seconds."""
-    ms = np.asarray(values_s, dtype=float) * 1e3
-    if ms.size == 0:
-        return {"n": 0}
-    return {"n": int(ms.size), "p50": float(np.percentile(ms, 50)),
-            "p90": float(np.percentile(ms, 90)), "p99": float(np.percentile(ms, 99)),
-            "max": float(ms.max()), "min": float(ms.min())}
-
-
-def episode_record(run: Run, next_played: float, seen: Observed, debounce_s: float,
-                   first_act) -> dict:
-    """Returns the time stamps and latencies (s) of one played episode, or why it was lost."""
-    mine = sorted((s for _, s in seen.summaries.values()
-                   if run.played <= s["started"] < next_played), key=lambda s: s["started"])
-    record = {"index": run.index, "gesture": run.gesture, "expected": run.expected,
-              "summaries": len(mine), "reset_after": run.reset_after}
-    if not mine:
-        return {**record, "lost": "no episode summary (no hand seen, or the episode service "
-                                  "missed it)"}
-    summary = mine[-1]
-    if summary["episode"] not in seen.intents:
-        return {**record, "episode": summary["episode"], "lost": "no intent for the summary"}
-    summary_rx = seen.summaries[summary["episode"]][0]
-    intent_rx, intent = seen.intents[summary["episode"]]
-    last_hand = summary["ended"]
-    end = last_hand + debounce_s
-    record.update(
-        episode=summary["episode"], lost=None, status=intent["status"],
-        action=intent["action"], object=intent["object"], reason=intent["reason"],
-        confidence=intent["confidence"],
-        last_hand_ts=last_hand, end_condition=end, summary_ts=summary["ts"],
-        summary_received=summary_rx, intent_ts=intent["ts"], intent_received=intent_rx,
-        bench_last_hand_ts=_bench_last_hand(seen, summary))
-    plan = seen.plans.get(summary["episode"])
-    record["plan"] = plan[1]["state"] if plan else None
-    record["plan_error"] = plan[1]["error"] if plan else None
-    # Searched from the intent's own stamp: the bench's receipt could come after the planner's
-    # first action if this process was held up; the latency is still taken from the receipt.
-    act = first_act(intent["ts"], next_played) if intent["status"] == "accepted" else None
-    record["first_robot_action"] = act
-    return record
-
-
-def _bench_last_hand(seen: Observed, summary: dict) -> float | None:
-    """The last frame with a hand the bench itself saw within the summary's episode."""
-    stamps = [f.ts for f in seen.frames.values()
-              if f.has_hand and summary["started"] <= f.ts <= summary["ended"] + 1e-9]
-    return max(stamps) if stamps else None
-
-
-def static_latencies(seen: Observed, runs: list[Run]) -> tuple[list[float], int]:
-    """Returns frame ts → static arrival (s) for the measured frames with a hand; and misses.
-
-    Misses: frames with a hand that got no static message (dropped under load).
-    """
-    start, stop = runs[0].played, runs[-1].finished
-    values, missing = [], 0
-    for seq, frame in seen.frames.items():
-        if frame.has_hand and start <= frame.ts <= stop:
-            if seq in seen.static:
-                values.append(seen.static[seq] - frame.ts)
-            else:
-                missing += 1
-    return values, missing
-
-
-def measure(records: list[dict], static: list[float], debounce_s: float) -> dict:
-    """Returns the four measures and the stage breakdown (figures in ms)."""
-    ok = [r for r in records if not r["lost"]]
-    acted = [r for r in ok if r["first_robot_action"] is not None]
-    out = {
-        "end_condition_to_intent": figures([r["intent_received"] - r["end_condition"]
-                                            for r in ok]),
-        "last_hand_frame_to_intent": figures([r["intent_received"] - r["last_hand_ts"]
-                                              for r in ok]),
-        "frame_to_static": figures(static),
-        "intent_to_first_robot_action": figures([r["first_robot_action"] - r["intent_received"]
-                                                 for r in acted]),
-    }
-    stamps = {"summary_stamped": "summary_ts", "summary_received": "summary_received",
-              "intent_stamped": "intent_ts", "intent_received": "intent_received"}
-    breakdown = {stage: figures([r[field_] - r["end_condition"] for r in ok])
-                 for stage, field_ in stamps.items()}
-    return {"measures": out, "breakdown_from_end_condition": breakdown,
-            "stages": stage_durations(ok)}
-
-
-# (what happens, from which time stamp, to which) between the end condition and the intent
-STAGE_SPANS = (
-    ("episode: notices the end, builds the summary", "end_condition", "summary_ts"),
-    ("summary: episode -> bench", "summary_ts", "summary_received"),
-    ("intent: summary -> inference -> stamped", "summary_received", "intent_ts"),
-    ("intent: intent -> bench", "intent_ts", "intent_received"),
-)
-
-
-def stage_durations(records: list[dict]) -> dict:
-    """Returns the figures of each stage between the end condition and the intent's arrival.
-
-    The summary's arrival at the bench stands in for its arrival at the intent service (both
-    subscribe to the same publication through the same router).
-    """
-    return {name: figures([r[stop] - r[start] for r in records])
-            for name, start, stop in STAGE_SPANS}
-
-
-def goals(measures: dict, debounce_s: float) -> dict:
-    """Returns, per measure, its goal as text and whether it was met (None: no goal)."""
-    end, last = measures["end_condition_to_intent"], measures["last_hand_frame_to_intent"]
-    limit = debounce_s * 1e3 + 20.0
-    return {
-        "end_condition_to_intent": {
-            "goal": "p50 <= 20 ms, p99 <= 50 ms",
-            "met": bool(end["n"]) and end["p50"] <= 20.0 and end["p99"] <= 50.0},
-        "last_hand_frame_to_intent": {
-            "goal": f"p50 <= debounce + 20 ms = {limit:g} ms",
-            "met": bool(last["n"]) and last["p50"] <= limit},
-        "frame_to_static": {"goal": None, "met": None},
-        "intent_to_first_robot_action": {"goal": None, "met": None},
-    }
-
-
-def tally(records: list[dict]) -> dict:
-    """Counts lost episodes by reason, intent statuses, unexpected actions, plan outcomes."""
-    out = {"episodes": len(records), "lost": 0, "lost_reasons": {}, "status": {},
-           "as_expected": 0, "unexpected": {}, "plans": {}, "split": 0, "resets": 0,
-           "bench_saw_other_last_hand": 0}
-    for r in records:
-        out["resets"] += r["reset_after"]
-        out["split"] += r["summaries"] > 1
-        if r["lost"]:
-            out["lost"] += 1
-            out["lost_reasons"][r["lost"]] = out["lost_reasons"].get(r["lost"], 0) + 1
-            continue
-        _count(out["status"], f"{r['status']} {r['action']}({r['object'] or ''})"
-                              + ("" if r["status"] == "accepted" else f": {r['reason']}"))
-        if r["status"] == "accepted" and r["action"] == r["expected"]:
-            out["as_expected"] += 1
-        else:
-            _count(out["unexpected"], f"{r['gesture']} -> {r['status']} {r['action']}"
-                                      f"({r['object'] or ''})")
-        _count(out["plans"], str(r["plan"]) + (f": {r['plan_error']}" if r["plan_error"] else ""))
-        bench_view = r["bench_last_hand_ts"]
-        if bench_view is None or abs(bench_view - r["last_hand_ts"]) > 1e-6:
-            out["bench_saw_other_last_hand"] += 1
-    return out
-
-
-def _count(table: dict, key: str) -> None:
-    table[key] = table.get(key, 0) + 1
-
-
-# ============================================================================ printing
-
-
-def _row(name: str, fig: dict, goal: dict | None = None) -> str:
-    if not fig.get("n"):
-        return f"  {name:<46} {'0':>5}  -"
-    text = (f"  {name:<46} {fig['n']:>5} {fig['p50']:8.2f} {fig['p90']:8.2f} {fig['p99']:8.2f} "
-            f"{fig['max']:8.2f}")
-    if goal and goal["goal"]:
-        text += f"   {goal['goal']}: {'met' if goal['met'] else 'MISSED'}"
-    return text
-
-
-def report(results: dict) -> str:
-    """Returns the printed table of a results dict."""
-    m, g = results["measures"], results["goals"]
-    lines = [f"{'measure (ms)':<48} {'n':>5} {'p50':>8} {'p90':>8} {'p99':>8} {'max':>8}   goal"]
-    lines += [_row(name.replace("_", " "), m[name], g[name]) for name in MEASURES]
-    lines.append("where end condition -> intent goes, stage by stage (ms):")
-    lines += [_row(f"  {stage}", fig) for stage, fig in results["stages"].items()]
-    t = results["tally"]
-    lines.append(f"episodes: {t['episodes']} measured, {t['lost']} lost"
-                 + (f" {t['lost_reasons']}" if t["lost"] else "")
-                 + f"; {t['as_expected']} as expected; intents {t['status']}")
-    if t["unexpected"]:
-        lines.append(f"unexpected intents: {t['unexpected']}")
-    lines.append(f"plans: {t['plans']}; world resets: {t['resets']}; split episodes: "
-                 f"{t['split']}; summaries whose last hand frame the bench saw differently: "
-                 f"{t['bench_saw_other_last_hand']}")
-    lines.append(f"frames with a hand without a static message: {results['static_missing']}")
-    lines.append(f"robot: {results['robot']}; load average before {results['loadavg_before']}, "
-                 f"after {results['loadavg_after']}")
-    return "\n".join(lines)
-
-
 # ============================================================================ running
 
 
-def _choose_robot(choice: str) -> str:
-    built = _dry_robot_built()
-    if choice == "dry-robot" and not built:
-        raise SystemExit("--robot dry-robot: the dry-robot service is not built in this "
-                         "installation; use --robot bench")
-    return "dry-robot" if choice == "dry-robot" or (choice == "auto" and built) else "bench"
-
-
-def _dry_robot_built() -> bool:
-    try:
-        return registry.by_name("dry-robot").exists()
-    except KeyError:
-        return False
-
-
-def start_pipeline(stack, args: argparse.Namespace, robot: str, data_dir: Path) -> list[str]:
-    """Starts router, services and (dry-robot) as processes; returns the names to wait for."""
+def start_pipeline(stack, args: argparse.Namespace, data_dir: Path) -> list[str]:
+    """Starts router, services and dry-robot as processes; returns the names to wait for."""
     env = {"CBGO_DATA_DIR": str(data_dir)}  # no personal models or user gestures of this host
     stack.start_router()
     names = [n for n in PIPELINE if not (args.no_dynamic and n == "dynamic-gesture")]
@@ -619,9 +290,8 @@ def start_pipeline(stack, args: argparse.Namespace, robot: str, data_dir: Path) 
                  ["--posterior-samples", str(args.intent_samples)] if args.intent_samples
                  else []),
              "dry-robot": ["--action-s", str(args.action_s),
-                           "--period-s", str(1.0 / args.scene_rate_hz)]}
-    if robot == "dry-robot":
-        names.append("dry-robot")
+                           "--state-rate-hz", str(args.scene_rate_hz)]}
+    names.append("dry-robot")
     for name in names:
         stack.start_service(name, *flags.get(name, []), env=env)
     return ["router", *names]
@@ -650,30 +320,20 @@ def run(args: argparse.Namespace) -> int:
     episodes = QUICK_EPISODES if args.quick else args.episodes
     if episodes < 1 or args.warmup < 0:
         raise SystemExit("--episodes must be >= 1 and --warmup >= 0")
-    robot = _choose_robot(args.robot)
     results = {"settings": {k: v for k, v in vars(args).items() if k != "func"},
-               "episodes": episodes, "robot": _robot_text(robot, args),
+               "episodes": episodes, "robot": _robot_text(args),
                "loadavg_before": _loadavg()}
     with _sigterm_as_interrupt(), tempfile.TemporaryDirectory() as tmp, \
             Stack(Path(tmp)) as stack:
-        names = start_pipeline(stack, args, robot, Path(tmp) / "data")
-        bench_robot = None
-        try:
-            if robot == "bench":
-                bench_robot = BenchRobot(stack.session(), stack.keys, args.scene_rate_hz)
-            stack.wait_alive(names, timeout=180)
-            tap = Tap(stack.session(), stack.keys)
-            time.sleep(0.5)  # let the bench's subscriptions reach the router
-            print(f"latency bench: {episodes} episodes (+{args.warmup} warm-up), "
-                  f"{' + '.join(names)} as processes, robot: {results['robot']}", flush=True)
-            runs = drive(stack, tap, args, episodes + args.warmup)
-            first_act = (bench_robot.first_act_after if bench_robot
-                         else tap.first_action_after)
-            results.update(_analyse(runs, tap, args, first_act))
-            results["services"] = _service_status(stack, names[1:])
-        finally:
-            if bench_robot is not None:
-                bench_robot.close()
+        names = start_pipeline(stack, args, Path(tmp) / "data")
+        stack.wait_alive(names, timeout=180)
+        tap = Tap(stack.session(), stack.keys)
+        time.sleep(0.5)  # let the bench's subscriptions reach the router
+        print(f"latency bench: {episodes} episodes (+{args.warmup} warm-up), "
+              f"{' + '.join(names)} as processes, robot: {results['robot']}", flush=True)
+        runs = drive(stack, tap, args, episodes + args.warmup)
+        results.update(_analyse(runs, tap, args, tap.first_action_after))
+        results["services"] = _service_status(stack, names[1:])
     results["loadavg_after"] = _loadavg()
     print(report(results))
     out = Path(args.out)
@@ -730,12 +390,9 @@ def _service_status(stack, names: list[str]) -> dict:
     return out
 
 
-def _robot_text(robot: str, args: argparse.Namespace) -> str:
-    if robot == "dry-robot":
-        return (f"dry-robot service (--action-s {args.action_s:g}, scene/state at "
-                f"{args.scene_rate_hz:g} Hz; first action: ts of its robot/state announcing it)")
-    return (f"bench (world model in the bench process; scene/state at {args.scene_rate_hz:g} Hz "
-            "and after each action; first action: robot/act query arrival)")
+def _robot_text(args: argparse.Namespace) -> str:
+    return (f"dry-robot service (--action-s {args.action_s:g}, scene/state at "
+            f"{args.scene_rate_hz:g} Hz; first action: ts of its robot/state announcing it)")
 
 
 def _loadavg() -> list[float]:

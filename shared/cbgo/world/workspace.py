@@ -30,6 +30,7 @@ The rules, in the robot base frame (metres), for a `Grid` (`cbgo.world.grid`):
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -97,6 +98,30 @@ def workspace_info(grid: Grid = DEFAULT_GRID) -> dict[str, Any]:
         "drawer_capacity": DRAWER_CAPACITY,
         "max_stack": MAX_STACK,
     }
+
+
+class SceneError(ValueError):
+    """A scene a robot cannot start from: not a scene, against the rules, or out of reach."""
+
+
+def startable_scene(scene: Scene | Mapping[str, Any], grid: Grid = DEFAULT_GRID) -> Scene:
+    """Returns the settled copy of a scene a robot resets to (a `Scene` or a contract body).
+
+    The one path from ``cbgo/sim/reset``'s scene (or a ``--scene`` file) to a robot's world:
+    parsed, judged by `reset_refusal` before anything is built, then settled.
+
+    Raises:
+        SceneError: not a scene, or refused (every problem named, `reset_refusal`).
+    """
+    try:
+        parsed = Scene.from_dict(dict(scene)) if isinstance(scene, Mapping) else scene.copy()
+    except (KeyError, TypeError, ValueError) as e:
+        raise SceneError(f"not a scene: {type(e).__name__}: {e}") from None
+    reason = reset_refusal(parsed, grid)
+    if reason is not None:
+        raise SceneError(reason)
+    parsed.settle()
+    return parsed
 
 
 def reset_refusal(scene: Scene, grid: Grid = DEFAULT_GRID) -> str | None:

@@ -2,8 +2,8 @@
 
 import pytest
 
-from cbgo.bench.latency import (
-    GESTURE_FOR,
+from cbgo.bench.latency import GESTURE_FOR
+from cbgo.bench.latency_figures import (
     Frame,
     Observed,
     Run,

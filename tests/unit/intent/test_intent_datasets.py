@@ -110,8 +110,8 @@ def test_cbgo_dataset_make_writes_a_file_that_info_describes(tmp_path, capsys):
 
 
 def test_the_repair_rule_opens_closed_drawers_and_sets_held_objects_aside():
-    from cbgo.services.intent.decide import after_repairs
     from cbgo.services.intent.evaluate import demo_scene
+    from cbgo.world.repairs import after_repairs
 
     holding = demo_scene()  # full cup1 in the gripper, drawer1 closed
     opened = after_repairs("put_into", "drawer1", holding)
@@ -129,9 +129,9 @@ def test_the_repair_rule_opens_closed_drawers_and_sets_held_objects_aside():
 
 
 def test_a_full_closed_drawer_is_not_repairable():
-    from cbgo.services.intent.decide import after_repairs
     from cbgo.services.intent.evaluate import demo_scene
     from cbgo.world import SceneObject
+    from cbgo.world.repairs import after_repairs
 
     scene = demo_scene()
     scene.objects.append(SceneObject("box2", "box", (0, 0, 0), 0.05, inside="drawer1"))
@@ -142,8 +142,8 @@ def test_a_full_closed_drawer_is_not_repairable():
 
 
 def test_repairable_draws_read_the_table_in_the_state_the_planner_makes():
-    from cbgo.services.intent.decide import REPAIRABLE
     from cbgo.world import failures
+    from cbgo.world.repairs import REPAIRABLE
 
     tables = datasets.load_tables()
     items = list(datasets.samples("D4", 1500, seed=40, repairable=True))
