@@ -10,6 +10,10 @@ The seven pipeline services and web (the live page) are the default set. An *alt
 (``replaces`` set) is another implementation of a default service's keys, e.g. dry-robot for
 mujoco-sim: it is never started by default, and never together with the service it replaces
 (two answers on ``cbgo/robot/act`` would be wrong); `swap` puts it in that service's place.
+
+An *optional* service (``optional`` set) is an extra that serves people rather than the
+pipeline, e.g. foxglove-bridge (the live Foxglove viewer connection): it is started only
+when asked for (``cbgo up --foxglove``, or by name), never by default.
 """
 
 from __future__ import annotations
@@ -28,12 +32,15 @@ class ServiceInfo:
         summary: what it does, in one line.
         replaces: the default service whose keys it answers instead, for an alternative
             implementation; None for a default service.
+        optional: an extra started only when asked for (by name or its own `cbgo up` flag),
+            never in the default set.
     """
 
     name: str
     issue: int
     summary: str
     replaces: str | None = None
+    optional: bool = False
 
     @property
     def role(self) -> str:
@@ -73,6 +80,8 @@ SERVICES: tuple[ServiceInfo, ...] = (
     ServiceInfo("mujoco-sim", 8, "the Panda table-top world in MuJoCo; executes robot actions"),
     ServiceInfo("dry-robot", 10, "the robot on the symbolic world model, no physics (no "
                 "MuJoCo needed; fast plan checks)", replaces="mujoco-sim"),
+    ServiceInfo("foxglove-bridge", 20, "the live traffic, 3D scene and log as a Foxglove "
+                "WebSocket server", optional=True),
 )
 ROUTER = "router"
 # `cbgo up --robot NAME`: which service answers cbgo/robot/act.
@@ -92,8 +101,8 @@ def by_name(name: str) -> ServiceInfo:
 
 
 def defaults() -> list[ServiceInfo]:
-    """Returns the default services (alternatives left out), in pipeline order."""
-    return [s for s in SERVICES if s.replaces is None]
+    """Returns the default services (alternatives and optional ones left out), in order."""
+    return [s for s in SERVICES if s.replaces is None and not s.optional]
 
 
 def available() -> list[ServiceInfo]:

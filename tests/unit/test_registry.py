@@ -18,6 +18,17 @@ def test_the_default_set_is_web_and_the_seven_pipeline_services_without_alternat
     assert registry.by_name("dry-robot").role == registry.by_name("mujoco-sim").role
 
 
+def test_foxglove_bridge_is_optional_never_in_the_default_set():
+    bridge = registry.by_name("foxglove-bridge")
+    assert bridge.optional and bridge.replaces is None and bridge.exists()
+    assert bridge.script == "cbgo-foxglove-bridge"
+    assert bridge.package == "cbgo.services.foxglove_bridge"
+    assert "foxglove-bridge" not in names(registry.defaults())
+    assert "foxglove-bridge" not in names(up.chosen_services([]))
+    assert names(up.chosen_services(["foxglove-bridge", "planner"])) == ["foxglove-bridge",
+                                                                         "planner"]
+
+
 def test_every_robot_choice_names_a_service_that_answers_robot_act():
     for name in registry.ROBOTS.values():
         assert registry.by_name(name).role == "mujoco-sim"
