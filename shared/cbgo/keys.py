@@ -1,7 +1,8 @@
 """Every key expression cbgo uses, built from one configurable prefix.
 
 Nothing else in the project spells a key: services name a `Topic` and ask `Keys` for its key
-expression. Each topic also carries its delivery policy, measured to matter (ARCHITECTURE.md):
+expression. Each topic also carries its delivery policy, measured to matter (docs/protocol.md,
+"Delivery policy"):
 hand frames and other high-rate streams are dropped under congestion and sent express, while
 events, summaries, intents, plans and actions block and are never dropped.
 

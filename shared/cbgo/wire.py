@@ -1,4 +1,4 @@
-"""The wire format: msgpack encode/decode and one schema per message of ARCHITECTURE.md.
+"""The wire format: msgpack encode/decode and one schema per message of docs/protocol.md.
 
 Rules every receiver applies (the contract):
 - a payload is one msgpack map with string keys, at most `max_bytes` long;

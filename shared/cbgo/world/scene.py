@@ -1,6 +1,6 @@
 """The symbolic scene: objects, how they rest on each other, and the robot; to and from the wire.
 
-A `Scene` is what `cbgo/scene/state` describes (ARCHITECTURE.md), as dataclasses the intent
+A `Scene` is what `cbgo/scene/state` describes (docs/protocol.md), as dataclasses the intent
 service, the planner and the dry robot share. Its rules:
 
 - object types are ``cup``, ``drawer`` and ``box``; names are unique;
