@@ -53,6 +53,7 @@ from cbgo import wire
 from cbgo.errors import RecordingError, RejectedMessage
 from cbgo.foxglove.channels import MESSAGE_ENCODING as JSON_ENCODING
 from cbgo.foxglove.channels import JsonChannels, is_derived, wire_payload
+from cbgo.foxglove.derive import DERIVED_TOPICS
 from cbgo.keys import DEFAULT_PREFIX
 
 # The toolbox JSON reader moved to cbgo.toolbox; its names stay importable from here.
@@ -239,9 +240,9 @@ class Recorder:
 
     @property
     def message_count(self) -> int:
-        """Messages written so far, all keys together."""
+        """Wire messages written so far, all keys together (derived Foxglove ones not)."""
         with self._lock:
-            return sum(s.count for s in self._stats.values())
+            return sum(s.count for k, s in self._stats.items() if k not in DERIVED_TOPICS)
 
     def close(self) -> None:
         """Writes the end metadata, the indexes and the summary, and closes the file.
@@ -256,7 +257,8 @@ class Recorder:
             try:
                 self._writer.add_metadata(METADATA_END, {
                     "stop_time_ns": str(stopped), "stop_time": _iso(stopped),
-                    "message_count": str(sum(s.count for s in self._stats.values())),
+                    "message_count": str(sum(s.count for k, s in self._stats.items()
+                                             if k not in DERIVED_TOPICS)),
                 })
                 self._writer.finish()
             finally:

@@ -8,9 +8,15 @@ stderr, and a per-key summary at the end. Ctrl-C or SIGTERM stops it and closes 
 properly; the file is valid only once closed (SIGKILL leaves it truncated). Read a file back
 with ``cbgo replay`` or any MCAP tool (``mcap info``).
 
+``--encoding json`` writes what Foxglove opens: each key's messages as JSON with the key's JSON
+Schema, plus the derived channels ``foxglove/scene`` (3D hands, objects, TCP, focus ray),
+``foxglove/transforms`` and ``foxglove/log``. Messages that break the contract are then not
+written; they are counted and listed at the end. ``cbgo export`` converts an existing file.
+
 Examples::
 
     cbgo record -o session.mcap                          # everything under cbgo/, until Ctrl-C
+    cbgo record --encoding json -o foxglove.mcap --duration 30   # open it in Foxglove
     cbgo record -o hands.mcap hands/frame gaze --duration 30
     cbgo record -o one.mcap 'gestures/*' --count 100 --force
 """
@@ -26,7 +32,7 @@ from pathlib import Path
 
 from cbgo.cli.common import add_network_arguments, fail, session
 from cbgo.errors import RecordingError
-from cbgo.recording import COMPRESSIONS, KeyFilter, Recorder
+from cbgo.recording import COMPRESSIONS, ENCODINGS, KeyFilter, Recorder
 
 PROGRESS_PERIOD_S = 0.5  # how often the progress line is refreshed on a terminal
 LOG_PERIOD_S = 5.0  # how often a progress line is printed when stderr is not a terminal
@@ -47,6 +53,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="stop after N messages (0: no limit)")
     parser.add_argument("--compression", choices=list(COMPRESSIONS), default="zstd",
                         help="chunk compression [zstd]")
+    parser.add_argument("--encoding", choices=list(ENCODINGS), default=ENCODINGS[0],
+                        help="msgpack: payloads as received; json: JSON with schemas and "
+                             "derived Foxglove channels, for Foxglove [msgpack]")
     add_network_arguments(parser)
 
 
@@ -68,7 +77,14 @@ def summary(recorder: Recorder) -> str:
     total = sum(s.count for s in stats.values())
     plural = "s" if len(stats) != 1 else ""
     lines.append(f"{total} messages on {len(stats)} key{plural} written to {recorder.path}")
+    lines += rejected_lines(recorder.rejected)
     return "\n".join(lines)
+
+
+def rejected_lines(rejected: dict[str, tuple[int, str]]) -> list[str]:
+    """Returns one line per key whose messages were left out, with the last reason."""
+    return [f"left out {n} message{'s' if n != 1 else ''} on {key} that break the contract "
+            f"(last: {reason})" for key, (n, reason) in rejected.items()]
 
 
 def _check_output(args: argparse.Namespace) -> Path:
@@ -101,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
         exprs = _key_exprs(keys, args.keys)
         try:
             recorder = Recorder(path, prefix=keys.prefix, keys=exprs,
-                                compression=args.compression)
+                                compression=args.compression, encoding=args.encoding)
         except RecordingError as e:
             fail(str(e), 2)
         # From here on a signal only asks the loop to stop, so the file is always closed.

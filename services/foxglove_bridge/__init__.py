@@ -1,0 +1,1 @@
+"""foxglove-bridge: the live cbgo traffic as a Foxglove WebSocket server."""
