@@ -35,6 +35,8 @@ VERBS = {
     "train": ("train", "train a model and write it where its service loads it"),
     "record": ("record", "record traffic to an MCAP file"),
     "replay": ("replay", "replay an MCAP recording onto the network"),
+    "export": ("export", "convert a recording to JSON MCAP with schemas, for Foxglove"),
+    "foxglove": ("foxglove", "serve the live traffic to Foxglove (WebSocket, 3D scene, log)"),
     "dataset": ("dataset", "generate the paper's intent datasets D1-D5"),
     "feedback": ("feedback", "correct the last intent (personalises the user's model)"),
     "gestures": ("gestures", "record a new gesture by demonstration and retrain"),
@@ -79,6 +81,11 @@ def main(argv: list[str] | None = None) -> None:
         from cbgo.runtime import run
 
         sys.exit(run(Router, argv[1:]))
+    if argv[:1] == ["foxglove"]:  # the foxglove-bridge service, likewise
+        from cbgo.runtime import run
+        from cbgo.services.foxglove_bridge.main import FoxgloveBridge
+
+        sys.exit(run(FoxgloveBridge, argv[1:]))
     args = build_parser(argv[0] if argv and argv[0] in VERBS else None).parse_args(argv)
     try:
         sys.exit(args.run(args))

@@ -13,6 +13,7 @@ Examples::
 
     cbgo up                                 # router + every built service
     cbgo up --robot dry                     # the same, with dry-robot instead of mujoco-sim
+    cbgo up --robot dry --foxglove          # and the Foxglove bridge, ws://127.0.0.1:8765
     cbgo up dry-robot planner               # router + the symbolic robot + the planner
     cbgo up episode intent                  # router + two services
     cbgo up --no-router --connect tcp/10.0.0.5:7447 planner   # join a remote router
@@ -34,6 +35,8 @@ from cbgo.config import DEFAULT_ROUTER_LISTEN, ConfigError, add_zenoh_arguments,
 from cbgo.keys import Keys
 from cbgo.supervisor import AliveWatcher, Child, Supervisor
 
+FOXGLOVE = "foxglove-bridge"  # the optional service `--foxglove` adds
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds up's flags."""
@@ -46,6 +49,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             f"{k} ({v})" for k, v in registry.ROBOTS.items())
                         + "; it takes mujoco-sim's place in the default set or in the "
                           "named services [mujoco]")
+    parser.add_argument("--foxglove", action="store_true",
+                        help="also start foxglove-bridge, the live Foxglove WebSocket server "
+                             "(ws://127.0.0.1:8765; its flags come from the environment, e.g. "
+                             "CBGO_WS_PORT)")
     parser.add_argument("--no-router", dest="router", action="store_false",
                         help="do not start a router; join the one at --connect")
     parser.add_argument("--router-listen", default=DEFAULT_ROUTER_LISTEN, metavar="ENDPOINT",
@@ -64,6 +71,8 @@ def list_services() -> int:
         state = "built" if info.exists() else f"not built yet (issue {info.issue})"
         if info.replaces:
             state += f", replaces {info.replaces}"
+        if info.optional:
+            state += ", optional"
         print(f"{info.name:<16} {state:<34} {info.summary}")
     robots = {v: k for k, v in registry.ROBOTS.items()}
     for info in registry.SERVICES:
@@ -74,14 +83,18 @@ def list_services() -> int:
     return 0
 
 
-def chosen_services(names: list[str], robot: str | None = None) -> list[registry.ServiceInfo]:
+def chosen_services(names: list[str], robot: str | None = None,
+                    foxglove: bool = False) -> list[registry.ServiceInfo]:
     """Returns the services to start, refusing unknown, unbuilt or clashing ones clearly.
 
     Args:
         names: the services named on the command line (none: the default set).
         robot: a key of `registry.ROBOTS`: that robot takes the place of the one in the set.
+        foxglove: add foxglove-bridge (first, so that it sees the others' first messages).
     """
     chosen = [_built(name) for name in names] if names else registry.available()
+    if foxglove and FOXGLOVE not in [s.name for s in chosen]:
+        chosen = [_built(FOXGLOVE), *chosen]
     if robot is not None:
         chosen = registry.swap(chosen, _built(registry.ROBOTS[robot]))
     for first, other in registry.clashes(chosen):
@@ -141,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
     """Runs the supervisor until Ctrl-C/SIGTERM."""
     if args.list:
         return list_services()
-    services = chosen_services(args.services, args.robot)
+    services = chosen_services(args.services, args.robot, args.foxglove)
     if not services:
         print("no service is built yet; running the router only (`cbgo up --list`)",
               flush=True)
