@@ -9,6 +9,7 @@ Examples::
     cbgo hz hands/frame          # message rate and jitter
     cbgo get 'cbgo/@ctl/*/status'
     cbgo pub user '{"user": "alice"}' --stamp
+    cbgo web --replay session.mcap   # a recording in the live page's panels, with a slider
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ VERBS = {
     "sim": ("sim", "talk to the simulator: snapshot, reset"),
     "plot": ("plot", "draw figures from recordings (the paper's episode figure)"),
     "plan": ("plan", "show the planner's live behaviour tree"),
+    "web": ("web", "serve the live web page, or scrub through a recording in it (--replay)"),
     "certs": ("certs", "make the TLS certificates of a secured network (openssl)"),
 }
 
