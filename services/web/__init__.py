@@ -1,0 +1,1 @@
+"""web: a live page of what cbgo sees and decides (hands, scene, gestures, intents, plans)."""

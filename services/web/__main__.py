@@ -1,0 +1,5 @@
+"""`python -m cbgo.services.web` runs the service."""
+
+from cbgo.services.web.main import main
+
+main()

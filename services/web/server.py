@@ -1,0 +1,208 @@
+"""The HTTP side of web: an aiohttp application on its own thread and event loop.
+
+- ``GET /`` the page, ``/static/...`` its scripts, styles and the vendored libraries (three.js,
+  with its licence), so the page needs nothing from the internet;
+- ``GET /api/info``: the mode (``live`` or ``replay``), the prefix, the workspace, the version;
+- ``GET /api/replay``: in replay mode, every view of the recording (``[t, topic, view]``);
+- ``GET /ws``: the live stream. A new page first gets what the `Hub` remembers (the newest
+  scene, robot state, intent, plan, services, and the recent gesture history), then every view
+  as it comes. Each page has its own bounded queue: a page that cannot keep up loses messages
+  (counted) instead of slowing the service or the other pages. Requests from the page (STOP,
+  feedback) arrive on the same socket and are answered on it.
+
+Threads: Zenoh's and the service's threads hand views over with `HttpServer.send`
+(thread-safe); everything else here runs on the server's loop.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import threading
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+
+from aiohttp import WSMsgType, web
+
+from cbgo.errors import ConfigError
+
+STATIC = Path(__file__).parent / "static"
+CLIENT_QUEUE = 512  # views queued per page before its newest are dropped
+# How many views of a topic a new page is sent first (the rest keep only the newest).
+HISTORY = {"episode/event": 200, "episode/summary": 20, "intent": 20, "plan/status": 20,
+           "gestures/static": 600, "gestures/dynamic": 100, "@evidence": 300, "@reply": 0}
+START_TIMEOUT_S = 10.0
+log = logging.getLogger("cbgo.web")
+
+
+class Hub:
+    """The pages connected to the live stream, and what a new page is sent first."""
+
+    def __init__(self):
+        self.pages: set[asyncio.Queue] = set()
+        self.sent = 0
+        self.dropped = 0
+        self._recent: dict[str, deque] = {}
+
+    def publish(self, topic: str, text: str) -> None:
+        """Sends one view to every page and remembers it (call on the server's loop)."""
+        keep = HISTORY.get(topic, 1)
+        if keep:
+            self._recent.setdefault(topic, deque(maxlen=keep)).append(text)
+        for queue in self.pages:
+            self.offer(queue, text)
+
+    def offer(self, queue: asyncio.Queue, text: str) -> None:
+        """Queues a view for one page, or counts it as dropped when the page lags."""
+        try:
+            queue.put_nowait(text)
+            self.sent += 1
+        except asyncio.QueueFull:
+            self.dropped += 1
+
+    def snapshot(self) -> list[str]:
+        """Returns what a new page gets first, oldest topic history first."""
+        return [text for recent in self._recent.values() for text in recent]
+
+
+class HttpServer:
+    """The aiohttp application, served from a thread of its own.
+
+    Args:
+        host: the address to listen on.
+        port: the port (0: any free one; `url` tells which).
+        info: returns the ``/api/info`` answer.
+        on_request: answers one WebSocket message from a page (returns the answer, JSON text).
+        replay: the ``/api/replay`` views, in replay mode.
+    """
+
+    def __init__(self, host: str, port: int, info: Callable[[], dict],
+                 on_request: Callable[[str | bytes], str], replay: list | None = None):
+        self.host, self.port = host, port
+        self.info, self.on_request, self.replay = info, on_request, replay
+        self.hub = Hub()
+        self.url = ""
+        self._loop = asyncio.new_event_loop()
+        self._runner: web.AppRunner | None = None
+        self._thread: threading.Thread | None = None
+
+    # ------------------------------------------------------------------ life cycle
+
+    def start(self) -> str:
+        """Binds and starts serving; returns the URL.
+
+        Raises:
+            ConfigError: the address cannot be bound (in use, not this host's), with the fix.
+        """
+        started: list = []
+        ready = threading.Event()
+        self._thread = threading.Thread(target=self._serve, args=(started, ready),
+                                        name="web-http", daemon=True)
+        self._thread.start()
+        if not ready.wait(START_TIMEOUT_S):
+            raise ConfigError(f"the web server did not start within {START_TIMEOUT_S} s")
+        if isinstance(started[0], OSError):
+            e = started[0]
+            raise ConfigError(
+                f"cannot serve HTTP on {self.host}:{self.port}: {e.strerror or e}; another "
+                "program (another cbgo-web?) may hold the port: stop it, or choose another "
+                "with --http-port / CBGO_HTTP_PORT (0: any free port)")
+        self.url = started[0]
+        return self.url
+
+    def stop(self) -> None:
+        """Closes the sockets and stops the loop (within about a second)."""
+        if self._thread is None or not self._thread.is_alive():
+            return
+        future = asyncio.run_coroutine_threadsafe(self._close(), self._loop)
+        try:
+            future.result(1.0)
+        except (TimeoutError, asyncio.TimeoutError):
+            log.warning("the web server did not close within 1 s")
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(1.0)
+
+    def send(self, topic: str, text: str) -> None:
+        """Hands one view to the pages (thread-safe)."""
+        if not self._loop.is_closed():
+            self._loop.call_soon_threadsafe(self.hub.publish, topic, text)
+
+    def _serve(self, started: list, ready: threading.Event) -> None:
+        asyncio.set_event_loop(self._loop)
+        try:
+            started.append(self._loop.run_until_complete(self._bind()))
+        except OSError as e:
+            started.append(e)
+        ready.set()
+        if isinstance(started[0], OSError):
+            return
+        self._loop.run_forever()
+
+    async def _bind(self) -> str:
+        self._runner = web.AppRunner(self._app(), access_log=None, handle_signals=False)
+        await self._runner.setup()
+        site = web.TCPSite(self._runner, self.host, self.port)
+        try:
+            await site.start()
+        except OSError:
+            await self._runner.cleanup()
+            raise
+        host, port = self._runner.addresses[0][:2]
+        return f"http://{host}:{port}/" if ":" not in host else f"http://[{host}]:{port}/"
+
+    async def _close(self) -> None:
+        if self._runner is not None:
+            await self._runner.cleanup()
+
+    # ------------------------------------------------------------------ routes
+
+    def _app(self) -> web.Application:
+        app = web.Application(client_max_size=64 * 1024)
+        app.router.add_get("/", self._index)
+        app.router.add_get("/api/info", self._info)
+        app.router.add_get("/api/replay", self._replay)
+        app.router.add_get("/ws", self._socket)
+        app.router.add_static("/static/", STATIC, follow_symlinks=False)
+        return app
+
+    async def _index(self, _request: web.Request) -> web.FileResponse:
+        return web.FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-cache"})
+
+    async def _info(self, _request: web.Request) -> web.Response:
+        return web.json_response(self.info())
+
+    async def _replay(self, _request: web.Request) -> web.Response:
+        if self.replay is None:
+            raise web.HTTPNotFound(text="not in replay mode: start `cbgo web --replay FILE`")
+        return web.json_response(self.replay)
+
+    async def _socket(self, request: web.Request) -> web.WebSocketResponse:
+        ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=64 * 1024)
+        await ws.prepare(request)
+        queue: asyncio.Queue = asyncio.Queue(CLIENT_QUEUE)
+        for text in self.hub.snapshot():
+            self.hub.offer(queue, text)
+        self.hub.pages.add(queue)
+        writer = asyncio.ensure_future(self._write(ws, queue))
+        try:
+            async for message in ws:
+                if message.type in (WSMsgType.TEXT, WSMsgType.BINARY):
+                    self.hub.offer(queue, self._answer(message.data))
+                elif message.type == WSMsgType.ERROR:
+                    log.info("a page's socket failed: %s", ws.exception())
+        finally:
+            self.hub.pages.discard(queue)
+            writer.cancel()
+        return ws
+
+    def _answer(self, data: str | bytes) -> str:
+        return self.on_request(data)
+
+    async def _write(self, ws: web.WebSocketResponse, queue: asyncio.Queue) -> None:
+        while not ws.closed:
+            text = await queue.get()
+            try:
+                await ws.send_str(text)
+            except (ConnectionError, RuntimeError):
+                return  # the page went away; its read loop ends the socket

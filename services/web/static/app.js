@@ -1,0 +1,406 @@
+// The page: one store of what the wire said, fed live by the WebSocket or by a recording
+// (replay), and panels drawn from the store. Views come from services/web/views.py (hands are
+// already in the robot base frame, high-rate streams already downsampled).
+import { colourOf, lines, spans, strip } from "./charts.js";
+import { SceneView } from "./scene.js";
+
+const WINDOW_S = 10;        // the gesture charts' time window
+const EPISODE_WINDOW_S = 60;
+const $ = (id) => document.getElementById(id);
+const esc = (v) => String(v ?? "").replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
+const pct = (p) => `${(100 * p).toFixed(0)}%`;
+const xyz = (p) => p ? `(${p.map((v) => v.toFixed(2)).join(", ")})` : "—";
+
+function emptyStore() {
+  return { hands: null, scene: null, robot: null, gaze: null, user: null, plan: null,
+    intent: null, services: null, stop: null, staticP: [], dynamicP: [], evidence: [],
+    events: [], summaries: [], intents: [], feedback: [], now: 0, dirty: new Set(["all"]) };
+}
+
+let store = emptyStore();
+let info = { mode: "live", actions: [] };
+let workspace = null;
+let socket = null, nextId = 1;
+const pending = new Map();
+const dismissed = new Set();
+let sceneView = null;
+
+// --------------------------------------------------------------------- the store
+
+function stamp(msg, t) { return typeof msg.ts === "number" ? msg.ts : t; }
+
+function keepRecent(list, now, seconds) {
+  while (list.length && list[0].ts < now - seconds) list.shift();
+}
+
+function apply(topic, msg, t) {
+  const ts = stamp(msg, t);
+  if (topic[0] !== "@") store.now = Math.max(store.now, ts);
+  const handlers = {
+    "hands/frame": () => { store.hands = msg; },
+    "gaze": () => { store.gaze = msg; },
+    "user": () => { store.user = msg.user; },
+    "scene/state": () => { store.scene = msg; },
+    "robot/state": () => { store.robot = msg; },
+    "plan/status": () => { store.plan = msg; },
+    "robot/stop": () => { store.stop = { ts, reason: msg.reason }; },
+    "intent/feedback": () => { store.feedback.push(msg); store.feedback = store.feedback.slice(-10); },
+    "intent": () => { store.intent = msg; store.intents.push(msg); store.intents = store.intents.slice(-20); },
+    "gestures/static": () => store.staticP.push(msg),
+    "gestures/dynamic": () => store.dynamicP.push(msg),
+    "@evidence": () => store.evidence.push(msg),
+    "episode/event": () => { store.events.push(msg); store.events = store.events.slice(-300); },
+    "episode/summary": () => { store.summaries.push(msg); store.summaries = store.summaries.slice(-30); },
+    "@services": () => { store.services = msg; },
+    "@workspace": () => { workspace = msg; sceneView?.setWorkspace(msg.workspace); },
+    "@reply": () => answered(msg),
+  };
+  (handlers[topic] || (() => {}))();
+  store.dirty.add(topic);
+}
+
+function trim() {
+  for (const list of [store.staticP, store.dynamicP, store.evidence]) keepRecent(list, store.now, WINDOW_S + 1);
+}
+
+// --------------------------------------------------------------------- panels
+
+function summaryOf(episode) { return store.summaries.find((s) => s.episode === episode); }
+
+function top(map, n) { return Object.entries(map || {}).sort((a, b) => b[1] - a[1]).slice(0, n); }
+
+function bars(map, cls) {
+  return `<div class="bars">${top(map, 5).map(([name, p]) =>
+    `<span>${esc(name)}</span><div class="bar ${cls}" style="width:${(100 * p).toFixed(1)}%"></div><span>${pct(p)}</span>`).join("")}</div>`;
+}
+
+function distance(a, b) { return Math.hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]); }
+
+// Why this object: the focus's distance to it (and to the runner-up), the gesture, the user.
+function whyLine(intent) {
+  const summary = summaryOf(intent.episode);
+  if (!summary) return "the episode's summary was not seen";
+  const [gesture, gp] = top(Object.fromEntries(summary.gestures.names.map((n, i) => [n, summary.gestures.probs[i]])), 1)[0] || ["none", 0];
+  const parts = [];
+  const objects = store.scene?.objects || [];
+  const chosen = objects.find((o) => o.name === intent.object);
+  if (summary.focus && chosen) {
+    parts.push(`focus (${summary.focus_source}) ${distance(summary.focus, chosen.position).toFixed(2)} m from ${esc(chosen.name)}`);
+    const others = objects.filter((o) => o !== chosen).map((o) => [o.name, distance(summary.focus, o.position)]).sort((a, b) => a[1] - b[1]);
+    if (others.length) parts.push(`next nearest ${esc(others[0][0])} at ${others[0][1].toFixed(2)} m`);
+  } else if (!summary.focus) {
+    parts.push("no focus: the user looked at nothing");
+  }
+  parts.push(`gesture ${esc(gesture)} ${pct(gp)}`, `user ${esc(summary.user)}`);
+  return parts.join(" · ");
+}
+
+function reasonInWords(intent) {
+  if (intent.reason) return intent.reason;
+  return { accepted: `accepted with confidence ${pct(intent.confidence)}`,
+    low_confidence: `not acted on: confidence ${pct(intent.confidence)} is too low`,
+    infeasible: "not possible in this scene" }[intent.status] || intent.status;
+}
+
+function drawIntent() {
+  const i = store.intent;
+  if (!i) return;
+  const call = `${i.action ?? "—"}(${i.object ?? ""})`;
+  $("intent-body").className = "";
+  $("intent-body").innerHTML = `
+    <div><span class="big">${esc(call)}</span><span class="status ${esc(i.status)}">${esc(i.status)}</span></div>
+    <div class="muted">episode ${esc(i.episode ?? "—")} · model ${esc(i.model)} · confidence ${pct(i.confidence)}</div>
+    <div class="why"><b>reason:</b> ${esc(reasonInWords(i))}</div>
+    <div class="why"><b>why this object:</b> ${whyLine(i)}</div>
+    <div class="muted">p(action)</div>${bars(i.p_action, "")}
+    <div class="muted">p(object)</div>${bars(i.p_object, "obj")}`;
+}
+
+function drawPlan() {
+  const p = store.plan;
+  if (p) {
+    const i = p.intent;
+    $("plan-body").className = "";
+    $("plan-body").innerHTML = `
+      <div><b>${esc(i.action)}(${esc(i.object ?? "")})</b><span class="status ${esc(p.state)}">${esc(p.state)}</span></div>
+      <ol class="steps">${p.sequence.map((s) => `<li>${esc(s.action)}(${esc(s.object ?? "")})
+        <span class="status ${esc(s.state)}">${esc(s.state)}</span></li>`).join("")}</ol>
+      ${p.error ? `<div class="err">${esc(p.error)}</div>` : ""}`;
+  }
+  const r = store.robot, held = store.scene?.robot?.holding;
+  if (r || store.scene) {
+    $("robot-body").className = "mono";
+    $("robot-body").innerHTML = `robot: TCP ${xyz(r?.tcp || store.scene?.robot?.tcp)}` +
+      (r ? ` · gripper ${(r.gripper_width * 1000).toFixed(0)} mm · ${r.moving ? "moving" : "still"}` +
+        (r.action ? ` · doing ${esc(r.action)}` : "") : "") +
+      ` · holding ${esc(held ?? "nothing")}` +
+      (store.stop ? `<div class="err">last stop: ${new Date(store.stop.ts * 1000).toLocaleTimeString()} ${esc(store.stop.reason ?? "")}</div>` : "");
+  }
+}
+
+// One line per gesture, and per hand when both hands are seen.
+function seriesOf(messages) {
+  const series = new Map();
+  const both = new Set(messages.map((m) => m.side)).size > 1;
+  for (const m of messages) {
+    m.names.forEach((name, k) => {
+      if (name === "none" || name === "no_gesture") return;
+      const key = both ? `${name} ${m.side[0]}` : name;
+      if (!series.has(key)) series.set(key, []);
+      series.get(key).push([m.ts, m.probs[k]]);
+    });
+  }
+  return series;
+}
+
+function drawGestures() {
+  const t1 = store.now || Date.now() / 1000, t0 = t1 - WINDOW_S;
+  const triggers = store.events.filter((e) => e.kind === "trigger" && e.ts >= t0);
+  const bounds = store.events.filter((e) => e.kind !== "trigger" && e.ts >= t0);
+  const markers = [...triggers.map((e) => ({ t: e.ts, label: `${e.gesture} ${pct(e.prob)}` })),
+    ...bounds.map((e) => ({ t: e.ts, label: e.kind, colour: "#8893a2" }))];
+  lines($("chart-static"), seriesOf(store.staticP), t0, t1, { markers, empty: "no static gestures (no hand?)" });
+  const windows = [];
+  for (const m of store.dynamicP) m.names.forEach((name, k) => windows.push({ t0: m.window[0], t1: m.window[1], name, v: m.probs[k] }));
+  spans($("chart-dynamic"), windows.filter((w) => w.t1 >= t0 && !w.name.startsWith("no")), t0, t1,
+    { empty: "no dynamic window" });
+  const evidence = new Map();
+  let threshold;
+  for (const e of store.evidence) {
+    threshold = e.threshold;
+    for (const [name, v] of Object.entries(e.values)) {
+      if (!evidence.has(name)) evidence.set(name, []);
+      evidence.get(name).push([e.ts, v]);
+    }
+  }
+  lines($("chart-evidence"), evidence, t0, t1, { threshold: threshold ?? 0.6, markers: triggers.map((e) => ({ t: e.ts, label: e.gesture })), empty: "no evidence" });
+  $("triggers").innerHTML = triggers.length ? "triggers: " + triggers.map((e) =>
+    `<span style="color:${colourOf(e.gesture)}">${esc(e.gesture)} ${pct(e.prob)}</span>`).join(", ") : "no trigger in this window";
+  $("window-s").textContent = WINDOW_S;
+}
+
+function episodeSpans(t0) {
+  const open = new Map(), out = [];
+  for (const e of store.events) {
+    if (e.kind === "start") open.set(e.episode, e.ts);
+    if (e.kind === "end" && open.has(e.episode)) {
+      const s = summaryOf(e.episode);
+      out.push({ t0: open.get(e.episode), t1: e.ts, label: s ? leader(s) : e.episode.slice(-4) });
+      open.delete(e.episode);
+    }
+  }
+  for (const [, start] of open) out.push({ t0: start, t1: null, label: "…", open: true });
+  return out.filter((e) => (e.t1 ?? Infinity) >= t0);
+}
+
+function leader(s) {
+  const k = s.gestures.probs.indexOf(Math.max(...s.gestures.probs));
+  return k >= 0 ? `${s.gestures.names[k]} ${pct(s.gestures.probs[k])}` : "—";
+}
+
+function drawEpisodes() {
+  const t1 = store.now || Date.now() / 1000, t0 = t1 - EPISODE_WINDOW_S;
+  strip($("chart-episodes"), episodeSpans(t0), t0, t1);
+  if (!store.summaries.length) return;
+  const rows = store.summaries.slice(-6).reverse().map((s) => {
+    const g = s.gestures.names.map((n, i) => [n, s.gestures.probs[i]]).sort((a, b) => b[1] - a[1]).slice(0, 3);
+    const intent = store.intents.find((i) => i.episode === s.episode);
+    return `<tr><td class="mono">${esc(s.episode.slice(-9))}</td><td>${esc(s.user)}</td>
+      <td>${(s.ended - s.started).toFixed(2)} s</td>
+      <td>${g.map(([n, p]) => `${esc(n)} ${p.toFixed(2)}`).join(", ")}</td>
+      <td class="mono">${xyz(s.focus)} ${esc(s.focus_source ?? "")}</td>
+      <td class="mono">${esc(JSON.stringify(s.params))}</td>
+      <td>${s.triggers.map((t) => esc(t.gesture)).join(", ") || "—"}</td>
+      <td>${intent ? `${esc(intent.action)}(${esc(intent.object ?? "")}) <span class="status ${esc(intent.status)}">${esc(intent.status)}</span>` : "—"}</td></tr>`;
+  });
+  $("episodes-body").className = "";
+  $("episodes-body").innerHTML = `<table><tr><th>episode</th><th>user</th><th>length</th><th>g (top 3)</th>
+    <th>focus</th><th>params</th><th>triggers</th><th>intent</th></tr>${rows.join("")}</table>`;
+}
+
+function drawServices() {
+  const s = store.services;
+  if (!s) return;
+  $("services-body").className = "";
+  $("services-body").innerHTML = `<table><tr><th>service</th><th>pid@host</th><th>up</th>
+    <th title="received / published / rejected / errors">in/out/rej/err</th><th>last error</th></tr>
+    ${s.services.map((r) => `<tr data-service="${esc(r.name)}"><td><span class="dot ${r.alive ? "on" : "off"}"></span>${esc(r.name)}</td>
+      <td class="mono">${esc(r.pid ?? "—")}@${esc(r.host ?? "?")}</td>
+      <td>${r.uptime_s != null ? `${r.uptime_s.toFixed(0)} s` : "—"}</td>
+      <td class="mono">${r.counters ? [r.counters.received, r.counters.published, r.counters.rejected, r.counters.errors].join("/") : "no status"}</td>
+      <td class="err">${r.last_error ? esc(`${r.last_error.where}: ${r.last_error.message}`).slice(0, 160) : ""}</td></tr>`).join("")}</table>`;
+}
+
+// --------------------------------------------------------------------- feedback and STOP
+
+function best(map) { return top(map, 1)[0]?.[0] ?? null; }
+
+function drawFeedback() {
+  const i = store.intent;
+  if (!i) return;
+  const live = info.mode === "live";
+  const objects = (store.scene?.objects || []).map((o) => o.name);
+  const options = (list, chosen) => list.map((v) => `<option ${v === chosen ? "selected" : ""}>${esc(v)}</option>`).join("");
+  const low = i.status === "low_confidence" && !dismissed.has(i.episode);
+  const guess = `${i.action ?? best(i.p_action)}(${i.object ?? best(i.p_object) ?? ""})`;
+  $("feedback-body").className = "";
+  $("feedback-body").innerHTML = `
+    <div class="muted">episode ${esc(i.episode ?? "—")} of ${esc(summaryOf(i.episode)?.user ?? "an unknown user")}</div>
+    ${low ? `<div class="why">low confidence: did you mean <b>${esc(guess)}</b>?
+      <div class="row"><button id="fb-confirm" data-testid="feedback-confirm" ${live ? "" : "disabled"}>Confirm (teaches the model)</button>
+      <button id="fb-reject" data-testid="feedback-reject">Reject (nothing moved; nothing is sent)</button></div></div>` : ""}
+    <div class="row">I meant <select id="fb-action">${options(info.actions, i.action ?? best(i.p_action))}</select>
+      on <select id="fb-object"><option value="">(no object)</option>${options(objects, i.object)}</select>
+      <button id="fb-send" data-testid="feedback-send" ${live && i.episode ? "" : "disabled"}>Correct</button></div>
+    <div id="fb-result" class="muted">${live ? "publishes cbgo/intent/feedback: the intent service learns this user's gestures" : "replay: nothing is published"}</div>`;
+  $("fb-send").onclick = () => sendFeedback($("fb-action").value, $("fb-object").value || null, i);
+  if (low) {
+    $("fb-confirm").onclick = () => sendFeedback(i.action ?? best(i.p_action), i.object ?? best(i.p_object), i);
+    $("fb-reject").onclick = () => { dismissed.add(i.episode); store.dirty.add("intent"); };
+  }
+}
+
+function request(body, onAnswer) {
+  if (!socket || socket.readyState !== WebSocket.OPEN) {
+    onAnswer({ ok: false, error: "not connected to the web service" });
+    return;
+  }
+  const id = nextId++;
+  pending.set(id, onAnswer);
+  socket.send(JSON.stringify({ ...body, id }));
+}
+
+function answered(msg) {
+  const onAnswer = pending.get(msg.id);
+  pending.delete(msg.id);
+  if (onAnswer) onAnswer(msg);
+  else if (!msg.ok) console.warn("the web service refused a request:", msg.error);
+}
+
+function sendFeedback(action, object, intent) {
+  request({ type: "feedback", action, object, episode: intent.episode }, (a) => {
+    $("fb-result").textContent = a.ok ? `sent to ${a.key}: ${action}(${object ?? ""})` : `not sent: ${a.error}`;
+    $("fb-result").className = a.ok ? "" : "err";
+    if (a.ok) dismissed.add(intent.episode);
+  });
+}
+
+function stop() {
+  $("stop").classList.add("sent");
+  setTimeout(() => $("stop").classList.remove("sent"), 400);
+  if (info.mode !== "live") { $("stop-result").textContent = "replay: there is no robot to stop"; return; }
+  request({ type: "stop" }, (a) => {
+    $("stop-result").textContent = a.ok ? `STOP sent on ${a.key} at ${new Date().toLocaleTimeString()}`
+      : `STOP NOT SENT: ${a.error}`;
+    $("stop-result").className = a.ok ? "" : "err";
+  });
+}
+
+// --------------------------------------------------------------------- live and replay
+
+function connect() {
+  const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`;
+  socket = new WebSocket(url);
+  socket.onopen = () => { $("link").textContent = "live"; $("link").className = "badge on"; };
+  socket.onmessage = (e) => { const m = JSON.parse(e.data); apply(m.topic, m.msg, m.t); };
+  socket.onclose = () => {
+    $("link").textContent = "disconnected, retrying…"; $("link").className = "badge off";
+    for (const [, onAnswer] of pending) onAnswer({ ok: false, error: "the connection closed" });
+    pending.clear();
+    setTimeout(connect, 1000);
+  };
+}
+
+async function startReplay() {
+  const items = await (await fetch("/api/replay")).json();
+  $("replay").hidden = false;
+  $("link").textContent = "replay"; $("link").className = "badge";
+  $("replay-file").textContent = info.file || "";
+  const times = items.map((x) => x[0]);
+  const first = times[0] ?? 0, last = times.at(-1) ?? 0;
+  let shown = -1, playing = false, lastTick = 0;
+  const scrub = $("scrub");
+  const seek = (t) => {
+    const n = upperBound(times, t);
+    if (n < shown) { store = emptyStore(); shown = 0; if (workspace) sceneView?.setWorkspace(workspace.workspace); }
+    for (let k = Math.max(shown, 0); k < n; k++) apply(items[k][1], items[k][2], items[k][0]);
+    shown = n; trim();
+    $("replay-time").textContent = `${(t - first).toFixed(2)} / ${(last - first).toFixed(2)} s`;
+  };
+  const at = () => first + (scrub.value / 1000) * (last - first);
+  scrub.oninput = () => seek(at());
+  $("play").onclick = () => { playing = !playing; $("play").textContent = playing ? "❚❚" : "▶"; lastTick = performance.now();
+    if (playing && scrub.value >= 1000) { scrub.value = 0; seek(at()); } };
+  document.addEventListener("keydown", (e) => { if (e.key === "p") $("play").click(); });
+  const tick = (now) => {
+    if (playing && last > first) {
+      const t = Math.min(last, at() + (now - lastTick) / 1000);
+      scrub.value = ((t - first) / (last - first)) * 1000;
+      seek(t);
+      if (t >= last) $("play").click();
+    }
+    lastTick = now;
+    requestAnimationFrame(tick);
+  };
+  requestAnimationFrame(tick);
+  seek(at());
+}
+
+function upperBound(sorted, t) {
+  let lo = 0, hi = sorted.length;
+  while (lo < hi) { const mid = (lo + hi) >> 1; if (sorted[mid] <= t) lo = mid + 1; else hi = mid; }
+  return lo;
+}
+
+// --------------------------------------------------------------------- drawing loop
+
+function pointing() {
+  if (store.gaze?.source === "pointing") return true;
+  const last = store.staticP.at(-1);
+  return !!last && last.names[last.probs.indexOf(Math.max(...last.probs))] === "point";
+}
+
+function focus() {
+  const s = store.summaries.at(-1);
+  return s?.focus || null;
+}
+
+let lastCharts = 0;
+function draw(now) {
+  const d = store.dirty, any = (...topics) => d.has("all") || topics.some((t) => d.has(t));
+  trim();
+  if (sceneView) {
+    sceneView.setObjects(store.scene, store.intent?.object);
+    if (any("hands/frame", "robot/state", "gaze", "scene/state", "episode/summary"))
+      sceneView.setDynamic({ hands: store.hands, robot: store.robot, scene: store.scene, gaze: store.gaze,
+        focus: focus(), pointing: pointing() });
+    sceneView.render();
+  }
+  if (any("intent", "episode/summary", "scene/state")) drawIntent();
+  if (any("intent", "episode/summary")) drawFeedback();  // not on scenes: keep the user's choice
+  if (any("plan/status", "robot/state", "scene/state", "robot/stop")) drawPlan();
+  if (any("@services")) drawServices();
+  if (now - lastCharts > 100) {  // the charts move with time: 10 redraws a second are plenty
+    drawGestures(); drawEpisodes(); lastCharts = now;
+  }
+  if (store.user) $("user").textContent = `user: ${store.user}`;
+  store.dirty.clear();
+  requestAnimationFrame(draw);
+}
+
+async function main() {
+  info = await (await fetch("/api/info")).json();
+  workspace = { workspace: info.workspace, source: info.source };
+  $("mode").textContent = info.mode === "live" ? `live · ${info.prefix}/**` : `replay · ${info.file}`;
+  sceneView = new SceneView($("scene"));
+  sceneView.setWorkspace(info.workspace);
+  $("scene-legend").innerHTML = `<i style="background:#39c5cf"></i>left hand<i style="background:#f778ba"></i>right hand
+    <i style="background:#ff7b72"></i>gaze<i style="background:#e3b341"></i>focus / pointing ray
+    <i style="background:#3fb950"></i>TCP<i style="background:#ffe066"></i>target · grid: ${esc(info.source)}`;
+  $("stop").onclick = stop;
+  document.addEventListener("keydown", (e) => { if (e.key === "Escape") { e.preventDefault(); stop(); } });
+  if (info.mode === "live") connect(); else await startReplay();
+  requestAnimationFrame(draw);
+}
+
+main();

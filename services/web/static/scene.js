@@ -1,0 +1,234 @@
+// The 3D scene in the robot base frame (metres, +z up; the user stands at +x facing -x):
+// workspace grid, table area, objects, TCP and gripper, hand skeletons (already in the base
+// frame: the server applies each frame's to_base), gaze point, episode focus, pointing ray,
+// and the intent's target highlighted.
+import * as THREE from "three";
+import { OrbitControls } from "three/addons/OrbitControls.js";
+
+const HAND_COLOURS = { left: 0x39c5cf, right: 0xf778ba };
+const OBJECT_COLOURS = { cup: 0x58a6ff, box: 0xd29922, drawer: 0x8b949e };
+const TARGET = 0xffe066;
+
+export class SceneView {
+  constructor(canvas) {
+    this.canvas = canvas;
+    this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true });
+    this.renderer.setPixelRatio(window.devicePixelRatio || 1);
+    this.scene = new THREE.Scene();
+    this.scene.background = new THREE.Color(0x0d1014);
+    this.camera = new THREE.PerspectiveCamera(45, 1, 0.01, 20);
+    this.camera.up.set(0, 0, 1);
+    this.camera.position.set(1.2, 0.5, 0.55);
+    this.controls = new OrbitControls(this.camera, canvas);
+    this.controls.target.set(0.42, 0, 0.06);
+    this.controls.update();
+    this.scene.add(new THREE.AmbientLight(0xffffff, 0.55));
+    const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+    sun.position.set(1, 0.5, 2);
+    this.scene.add(sun);
+    this.static = new THREE.Group(); this.objects = new THREE.Group();
+    this.dynamic = new THREE.Group();
+    this.scene.add(this.static, this.objects, this.dynamic);
+    this.addRobotBase();
+    this.objectsKey = "";
+  }
+
+  addRobotBase() {
+    const base = new THREE.Mesh(new THREE.CylinderGeometry(0.07, 0.09, 0.06, 32),
+      new THREE.MeshStandardMaterial({ color: 0xdddddd }));
+    base.rotation.x = Math.PI / 2; base.position.set(0, 0, 0.03);
+    this.scene.add(base, label("robot base", [0, 0, 0.1], "#c9d1d9"));
+    this.scene.add(new THREE.AxesHelper(0.12));
+  }
+
+  // The documented workspace (cbgo/sim/info, else cbgo.world.workspace's default grid).
+  setWorkspace(ws) {
+    this.static.clear();
+    const area = ws.table_area;
+    const pad = 0.08;
+    const table = new THREE.Mesh(
+      new THREE.PlaneGeometry(area.x[1] - area.x[0] + 2 * pad, area.y[1] - area.y[0] + 2 * pad),
+      new THREE.MeshStandardMaterial({ color: 0x2a2f36, side: THREE.DoubleSide }));
+    table.position.set((area.x[0] + area.x[1]) / 2, (area.y[0] + area.y[1]) / 2, -0.001);
+    this.static.add(table);
+    this.static.add(rectangle(area.x, area.y, 0, 0x58a6ff));
+    const dots = [];
+    for (const x of ws.columns_x) for (const y of ws.columns_y) for (const z of ws.levels_z) dots.push(x, y, z);
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute("position", new THREE.Float32BufferAttribute(dots, 3));
+    this.static.add(new THREE.Points(geometry, new THREE.PointsMaterial({ color: 0x6e7681, size: 0.008 })));
+    const lines = [];
+    for (const x of ws.columns_x) lines.push([x, ws.columns_y[0], 0], [x, ws.columns_y.at(-1), 0]);
+    for (const y of ws.columns_y) lines.push([ws.columns_x[0], y, 0], [ws.columns_x.at(-1), y, 0]);
+    this.static.add(segments(lines, 0x30363d));
+    this.static.add(label("workspace grid", [area.x[1] + 0.02, area.y[0], 0.01], "#8893a2"));
+  }
+
+  // Rebuilt only when the scene changes (names, positions, states, target).
+  setObjects(scene, target) {
+    const key = JSON.stringify([scene?.objects, target]);
+    if (key === this.objectsKey) return;
+    this.objectsKey = key;
+    release(this.objects);
+    for (const obj of scene?.objects || []) this.objects.add(objectMesh(obj, obj.name === target));
+  }
+
+  // Everything that moves every frame.
+  setDynamic(s) {
+    release(this.dynamic);
+    const tcp = s.robot?.tcp || s.scene?.robot?.tcp;
+    if (tcp) this.addGripper(tcp, s.robot?.gripper_width ?? (s.scene?.robot?.gripper_open ? 0.08 : 0.0));
+    for (const hand of s.hands?.hands || []) this.addHand(hand, s.pointing);
+    if (s.gaze) {
+      this.dynamic.add(sphere(s.gaze.point, 0.012, 0xff7b72));
+      this.dynamic.add(label(`gaze (${s.gaze.source})`, add(s.gaze.point, [0, 0, 0.05]), "#ff7b72"));
+    }
+    if (s.focus) {
+      const ring = new THREE.Mesh(new THREE.TorusGeometry(0.03, 0.003, 8, 32),
+        new THREE.MeshBasicMaterial({ color: 0xe3b341 }));
+      ring.position.set(...s.focus);
+      this.dynamic.add(ring, label("focus", add(s.focus, [0, 0, -0.03]), "#e3b341"));
+    }
+  }
+
+  addGripper(tcp, width) {
+    const metal = new THREE.MeshStandardMaterial({ color: 0xeeeeee, metalness: 0.3 });
+    this.dynamic.add(segments([[0, 0, 0.06], [0, 0, 0.33], [0, 0, 0.33], [tcp[0], tcp[1], tcp[2] + 0.1],
+      [tcp[0], tcp[1], tcp[2] + 0.1], tcp], 0x6e7681));
+    const half = Math.max(0.004, Math.min(width, 0.08) / 2);
+    for (const side of [-1, 1]) {
+      const finger = new THREE.Mesh(new THREE.BoxGeometry(0.01, 0.008, 0.04), metal);
+      finger.position.set(tcp[0], tcp[1] + side * half, tcp[2] + 0.01);
+      this.dynamic.add(finger);
+    }
+    this.dynamic.add(sphere(tcp, 0.008, 0x3fb950));
+    this.dynamic.add(label(`TCP ${(width * 1000).toFixed(0)} mm`, add(tcp, [0, 0, 0.07]), "#3fb950"));
+  }
+
+  addHand(hand, pointing) {
+    const colour = HAND_COLOURS[hand.side] ?? 0xffffff;
+    const lines = [];
+    for (const finger of hand.fingers) {
+      lines.push(hand.wrist, finger[0]);
+      for (let i = 0; i < 4; i++) lines.push(finger[i], finger[i + 1]);
+    }
+    for (let f = 1; f < 4; f++) lines.push(hand.fingers[f][1], hand.fingers[f + 1][1]);
+    this.dynamic.add(segments(lines, colour));
+    this.dynamic.add(sphere(hand.palm, 0.01, colour));
+    this.dynamic.add(label(`${hand.side} hand`, add(hand.palm, [0, 0, 0.06]), "#" + colour.toString(16)));
+    if (pointing) this.addRay(hand);
+  }
+
+  // The index finger's ray, from its tip along its last bone, to the table (or 1.5 m).
+  addRay(hand) {
+    const tip = hand.fingers[1][4], prev = hand.fingers[1][3];
+    const d = [tip[0] - prev[0], tip[1] - prev[1], tip[2] - prev[2]];
+    const n = Math.hypot(...d) || 1;
+    let len = 1.5;
+    if (d[2] < -1e-6) len = Math.min(len, (-tip[2] / (d[2] / n)));
+    const end = [tip[0] + d[0] / n * len, tip[1] + d[1] / n * len, tip[2] + d[2] / n * len];
+    this.dynamic.add(segments([tip, end], 0xe3b341, true));
+  }
+
+  render() {
+    const w = this.canvas.clientWidth, h = this.canvas.clientHeight;
+    if (this.canvas.width !== Math.round(w * this.renderer.getPixelRatio())) {
+      this.renderer.setSize(w, h, false);
+      this.camera.aspect = w / h; this.camera.updateProjectionMatrix();
+    }
+    this.renderer.render(this.scene, this.camera);
+  }
+}
+
+function objectMesh(obj, isTarget) {
+  const group = new THREE.Group();
+  const s = obj.size, [x, y, z] = obj.position;
+  const colour = isTarget ? TARGET : OBJECT_COLOURS[obj.type] ?? 0xffffff;
+  const material = new THREE.MeshStandardMaterial({
+    color: colour, emissive: isTarget ? 0x665500 : 0x000000, transparent: obj.type === "drawer",
+    opacity: obj.type === "drawer" ? 0.75 : 1 });
+  let mesh;
+  if (obj.type === "cup") {
+    mesh = new THREE.Mesh(new THREE.CylinderGeometry(s / 2, s * 0.4, s, 24, 1, !obj.full), material);
+    mesh.rotation.x = Math.PI / 2;
+    if (obj.full) {
+      const fill = new THREE.Mesh(new THREE.CylinderGeometry(s * 0.46, s * 0.42, s * 0.7, 24),
+        new THREE.MeshStandardMaterial({ color: 0x1f6feb }));
+      fill.rotation.x = Math.PI / 2; fill.position.set(x, y, z - s * 0.1);
+      group.add(fill);
+    }
+  } else {
+    mesh = new THREE.Mesh(new THREE.BoxGeometry(s, s, s), material);
+  }
+  mesh.position.set(x, y, z);
+  group.add(mesh);
+  if (obj.type === "drawer" && (obj.open || (obj.opening ?? 0) > 0.01)) {
+    const out = (obj.opening ?? 1) * 0.818 * s;  // the tray slides towards the robot (-x)
+    const tray = new THREE.Mesh(new THREE.BoxGeometry(out, s * 0.9, s * 0.3),
+      new THREE.MeshStandardMaterial({ color: 0xadbac7 }));
+    tray.position.set(x - s / 2 - out / 2, y, z - s * 0.2);
+    group.add(tray);
+  }
+  if (isTarget) {
+    const ring = new THREE.Mesh(new THREE.RingGeometry(s * 0.75, s * 0.9, 40),
+      new THREE.MeshBasicMaterial({ color: TARGET, side: THREE.DoubleSide }));
+    ring.position.set(x, y, 0.002);
+    group.add(ring);
+  }
+  const state = [obj.full ? "full" : "", obj.open ? "open" : "", obj.on ? `on ${obj.on}` : "",
+    obj.inside ? `in ${obj.inside}` : ""].filter(Boolean).join(", ");
+  group.add(label(obj.name + (state ? ` (${state})` : "") + (isTarget ? " ◀ target" : ""),
+    [x, y, z + s / 2 + 0.035], isTarget ? "#ffe066" : "#dde3ea"));
+  return group;
+}
+
+// Empties a group and frees its GPU buffers (label textures are cached and kept).
+function release(group) {
+  group.traverse((o) => { o.geometry?.dispose(); o.material?.dispose(); });
+  group.clear();
+}
+
+function add(a, b) { return [a[0] + b[0], a[1] + b[1], a[2] + b[2]]; }
+
+function sphere(p, r, colour) {
+  const m = new THREE.Mesh(new THREE.SphereGeometry(r, 16, 12), new THREE.MeshBasicMaterial({ color: colour }));
+  m.position.set(...p);
+  return m;
+}
+
+function segments(points, colour, dashed = false) {
+  const geometry = new THREE.BufferGeometry().setFromPoints(points.map((p) => new THREE.Vector3(...p)));
+  const material = dashed ? new THREE.LineDashedMaterial({ color: colour, dashSize: 0.03, gapSize: 0.02 })
+    : new THREE.LineBasicMaterial({ color: colour });
+  const lines = new THREE.LineSegments(geometry, material);
+  if (dashed) lines.computeLineDistances();
+  return lines;
+}
+
+function rectangle(xs, ys, z, colour) {
+  const [x0, x1] = xs, [y0, y1] = ys;
+  return segments([[x0, y0, z], [x1, y0, z], [x1, y0, z], [x1, y1, z], [x1, y1, z], [x0, y1, z],
+    [x0, y1, z], [x0, y0, z]], colour);
+}
+
+const labels = new Map();  // text+colour -> texture, so a label redrawn every frame is cheap
+
+function label(text, position, colour) {
+  const key = text + colour;
+  if (!labels.has(key)) {
+    const canvas = document.createElement("canvas");
+    const ctx = canvas.getContext("2d");
+    ctx.font = "28px sans-serif";
+    canvas.width = Math.ceil(ctx.measureText(text).width) + 8; canvas.height = 36;
+    ctx.font = "28px sans-serif"; ctx.fillStyle = colour; ctx.fillText(text, 4, 28);
+    const texture = new THREE.CanvasTexture(canvas);
+    texture.colorSpace = THREE.SRGBColorSpace;
+    labels.set(key, { texture, aspect: canvas.width / canvas.height });
+    if (labels.size > 500) labels.delete(labels.keys().next().value);
+  }
+  const { texture, aspect } = labels.get(key);
+  const sprite = new THREE.Sprite(new THREE.SpriteMaterial({ map: texture, depthTest: false }));
+  sprite.scale.set(0.03 * aspect, 0.03, 1);
+  sprite.position.set(...position);
+  return sprite;
+}
