@@ -67,6 +67,7 @@ def user_env(venv: Path, data: Path) -> dict[str, str]:
     env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
     env["CBGO_DATA_DIR"] = str(data)
     env["PYTHONUNBUFFERED"] = "1"
+    env["CBGO_HTTP_PORT"] = "0"  # web on any free port: 8080 may be taken on a test machine
     return env
 
 
