@@ -18,4 +18,5 @@ BENCHES = {
     "episode": ("cbgo.services.episode.bench",
                 "episode end condition -> summary latency through real processes"),
     "latency": ("cbgo.bench.latency", "end to end: end condition -> intent -> robot action"),
+    "web": ("cbgo.services.web.bench", "web's CPU share under 120 Hz hands, page rates"),
 }
