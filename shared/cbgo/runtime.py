@@ -36,11 +36,12 @@ from typing import Any, ClassVar, Protocol
 
 import cbgo
 from cbgo import wire
-from cbgo.client import pick_reply, replies
+from cbgo.client import pick_reply
 from cbgo.config import NoSettings, Resolved, resolve, zenoh_config
 from cbgo.errors import ConfigError, DeviceError, QueryError, RejectedMessage
 from cbgo.keys import Keys, Topic, check_service_name
 from cbgo.logs import RateLimited, kv, setup_logging
+from cbgo.zenoh_transport import ZenohTransport
 
 Output = tuple[Topic, dict]
 Handler = Callable[[dict], "Iterable[Output] | None"]
@@ -398,74 +399,7 @@ class Context:
         return min(0.2, max(0.0, self._timers[0][0] - now)) if self._timers else 0.2
 
 
-# ==================================================================== Zenoh transport + run()
-
-
-class _ZenohQuery:
-    def __init__(self, query: Any, key: str):
-        self._query, self._key = query, key
-        self.payload = query.payload.to_bytes() if query.payload is not None else None
-
-    def reply(self, payload: bytes) -> None:
-        """Sends the reply and finalises the query."""
-        try:
-            self._query.reply(self._key, payload)
-        finally:
-            self._query.drop()  # finalise now, so the querier is not left waiting for more
-
-    def reply_err(self, reason: str) -> None:
-        """Sends an error reply and finalises the query."""
-        try:
-            self._query.reply_err(reason.encode())
-        finally:
-            self._query.drop()
-
-
-class ZenohTransport:
-    """`Transport` over an open zenoh.Session."""
-
-    def __init__(self, session: Any):
-        import zenoh
-
-        self._zenoh, self.session = zenoh, session
-        self._entities: list[Any] = []  # keep declarations alive for the session's lifetime
-        self._publishers: dict[str, Any] = {}
-
-    def subscribe(self, key: str, callback: Callable[[str, bytes], None]) -> None:
-        """Declares a Zenoh subscriber whose samples go to callback."""
-        self._entities.append(self.session.declare_subscriber(
-            key, lambda s: callback(str(s.key_expr), s.payload.to_bytes())))
-
-    def serve(self, key: str, callback: Callable[[IncomingQuery], None]) -> None:
-        """Declares a Zenoh queryable whose queries go to callback."""
-        self._entities.append(self.session.declare_queryable(
-            key, lambda q: callback(_ZenohQuery(q, key))))
-
-    def publisher(self, key: str, topic: Topic | None) -> Callable[[bytes], None]:
-        """Declares a publisher with the topic's congestion control and express flag."""
-        z = self._zenoh
-        reliable = topic is None or topic.reliable
-        pub = self.session.declare_publisher(
-            key,
-            congestion_control=z.CongestionControl.BLOCK if reliable else z.CongestionControl.DROP,
-            express=bool(topic and topic.express),
-        )
-        self._publishers[key] = pub
-        return pub.put
-
-    def get(self, key: str, payload: bytes, timeout_s: float) -> list[tuple[bool, bytes]]:
-        """Sends a query and collects every reply until the timeout."""
-        return [(r.ok, r.payload) for r in replies(self.session, key, payload, timeout_s)]
-
-    def matching(self, key: str) -> bool:
-        """Returns whether a subscriber matches the publisher of key."""
-        pub = self._publishers.get(key)
-        return bool(pub is not None and pub.matching_status.matching)
-
-    def alive(self, key: str, timeout_s: float) -> list[str]:
-        """Returns the liveliness tokens matching key."""
-        return [str(r.ok.key_expr) for r in self.session.liveliness().get(key, timeout=timeout_s)
-                if r.ok is not None]
+# ==================================================================== run() over Zenoh
 
 
 class _EventLoop:
