@@ -79,7 +79,8 @@ class FoxgloveBridge(Service):
         import foxglove  # here, not at import: `--help` needs no server library
 
         self.ctx = ctx
-        context = foxglove.Context()
+        # Kept for the process's life: the channels are lost with their context.
+        self.context = context = foxglove.Context()
         self._open_channels(foxglove, context, ctx.keys)
         s = self.settings
         try:
