@@ -102,9 +102,13 @@ function reasonInWords(intent) {
     infeasible: "not possible in this scene" }[intent.status] || intent.status;
 }
 
+function placeholder(id, text) {
+  $(id).className = "muted"; $(id).textContent = text;
+}
+
 function drawIntent() {
   const i = store.intent;
-  if (!i) return;
+  if (!i) return placeholder("intent-body", "no intent yet");
   const call = `${i.action ?? "—"}(${i.object ?? ""})`;
   $("intent-body").className = "";
   $("intent-body").innerHTML = `
@@ -118,7 +122,8 @@ function drawIntent() {
 
 function drawPlan() {
   const p = store.plan;
-  if (p) {
+  if (!p) placeholder("plan-body", "no plan yet");
+  else {
     const i = p.intent;
     $("plan-body").className = "";
     $("plan-body").innerHTML = `
@@ -128,7 +133,8 @@ function drawPlan() {
       ${p.error ? `<div class="err">${esc(p.error)}</div>` : ""}`;
   }
   const r = store.robot, held = store.scene?.robot?.holding;
-  if (r || store.scene) {
+  if (!r && !store.scene) placeholder("robot-body", "");
+  else {
     $("robot-body").className = "mono";
     $("robot-body").innerHTML = `robot: TCP ${xyz(r?.tcp || store.scene?.robot?.tcp)}` +
       (r ? ` · gripper ${(r.gripper_width * 1000).toFixed(0)} mm · ${r.moving ? "moving" : "still"}` +
@@ -201,7 +207,7 @@ function leader(s) {
 function drawEpisodes() {
   const t1 = store.now || Date.now() / 1000, t0 = t1 - EPISODE_WINDOW_S;
   strip($("chart-episodes"), episodeSpans(t0), t0, t1);
-  if (!store.summaries.length) return;
+  if (!store.summaries.length) return placeholder("episodes-body", "no episode yet");
   const rows = store.summaries.slice(-6).reverse().map((s) => {
     const g = s.gestures.names.map((n, i) => [n, s.gestures.probs[i]]).sort((a, b) => b[1] - a[1]).slice(0, 3);
     const intent = store.intents.find((i) => i.episode === s.episode);
@@ -220,7 +226,7 @@ function drawEpisodes() {
 
 function drawServices() {
   const s = store.services;
-  if (!s) return;
+  if (!s) return placeholder("services-body", info.mode === "live" ? "asking…" : "replay: no live services");
   $("services-body").className = "";
   $("services-body").innerHTML = `<table><tr><th>service</th><th>pid@host</th><th>up</th>
     <th title="received / published / rejected / errors">in/out/rej/err</th><th>last error</th></tr>
@@ -237,7 +243,7 @@ function best(map) { return top(map, 1)[0]?.[0] ?? null; }
 
 function drawFeedback() {
   const i = store.intent;
-  if (!i) return;
+  if (!i) return placeholder("feedback-body", "no intent to correct yet");
   const live = info.mode === "live";
   const objects = (store.scene?.objects || []).map((o) => o.name);
   const options = (list, chosen) => list.map((v) => `<option ${v === chosen ? "selected" : ""}>${esc(v)}</option>`).join("");

@@ -81,13 +81,13 @@ export class SceneView {
     for (const hand of s.hands?.hands || []) this.addHand(hand, s.pointing);
     if (s.gaze) {
       this.dynamic.add(sphere(s.gaze.point, 0.012, 0xff7b72));
-      this.dynamic.add(label(`gaze (${s.gaze.source})`, add(s.gaze.point, [0, 0, 0.05]), "#ff7b72"));
+      this.dynamic.add(label(`gaze (${s.gaze.source})`, add(s.gaze.point, [0, -0.07, 0.09]), "#ff7b72"));
     }
     if (s.focus) {
       const ring = new THREE.Mesh(new THREE.TorusGeometry(0.03, 0.003, 8, 32),
         new THREE.MeshBasicMaterial({ color: 0xe3b341 }));
       ring.position.set(...s.focus);
-      this.dynamic.add(ring, label("focus", add(s.focus, [0, 0, -0.03]), "#e3b341"));
+      this.dynamic.add(ring, label("focus", add(s.focus, [0, -0.06, -0.02]), "#e3b341"));
     }
   }
 
@@ -102,7 +102,7 @@ export class SceneView {
       this.dynamic.add(finger);
     }
     this.dynamic.add(sphere(tcp, 0.008, 0x3fb950));
-    this.dynamic.add(label(`TCP ${(width * 1000).toFixed(0)} mm`, add(tcp, [0, 0, 0.07]), "#3fb950"));
+    this.dynamic.add(label(`TCP ${(width * 1000).toFixed(0)} mm`, add(tcp, [0, 0.06, 0.13]), "#3fb950"));
   }
 
   addHand(hand, pointing) {

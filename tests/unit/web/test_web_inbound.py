@@ -1,0 +1,50 @@
+"""web's page requests: checked before anything is published, rejected with a reason."""
+
+import json
+
+import pytest
+
+from cbgo import wire
+from cbgo.errors import RejectedMessage
+from cbgo.services.web.inbound import MAX_REQUEST_BYTES, parse, request_id
+
+
+def test_stop_becomes_a_stamped_robot_stop_with_a_reason():
+    request = parse(json.dumps({"type": "stop", "id": 3}), {}, now=5.0)
+    assert request.kind == "stop" and request.id == 3
+    assert request.message == {"v": wire.SCHEMA_VERSION, "ts": 5.0,
+                               "reason": "stop pressed on the web page"}
+
+
+def test_feedback_takes_the_user_from_the_episodes_summary():
+    request = parse(json.dumps({"type": "feedback", "action": "pick_up", "object": "cup2",
+                                "episode": "ep-1"}), {"ep-1": "user1"}, now=1.0)
+    wire.validate(request.message, wire.INTENT_FEEDBACK)
+    assert (request.message["user"], request.message["object"]) == ("user1", "cup2")
+
+
+@pytest.mark.parametrize("text, problem", [
+    ("not json", "not JSON"),
+    ("[1, 2]", "expected a JSON object"),
+    ('{"type": "launch"}', "unknown request type"),
+    ('{"type": "stop", "id": "x"}', "id"),
+    ('{"type": "feedback", "action": "fly", "user": "u"}', "action"),
+    ('{"type": "feedback", "action": "open", "episode": "unseen"}', "no user"),
+    ('{"type": "feedback", "action": "open", "user": "", "object": 5}', "no user"),
+    ('{"type": "feedback", "action": "open", "user": "u", "object": 5}', "object"),
+    ("x" * (MAX_REQUEST_BYTES + 1), "exceeds"),
+])
+def test_a_bad_request_is_rejected_naming_the_problem(text, problem):
+    with pytest.raises(RejectedMessage) as info:
+        parse(text, {})
+    assert problem in str(info.value)
+
+
+def test_binary_messages_are_rejected():
+    with pytest.raises(RejectedMessage, match="binary"):
+        parse(b'{"type": "stop"}', {})
+
+
+def test_the_id_of_a_rejected_request_is_read_when_it_can_be():
+    assert request_id('{"type": "x", "id": 4}') == 4
+    assert request_id("nonsense") is None and request_id('{"id": "4"}') is None
