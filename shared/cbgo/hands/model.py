@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from cbgo.hands.poses_file import default_shape_parameters
 from cbgo.wire import BONE_TYPES, FINGER_TYPES
 
 FINGERS = ("index", "middle", "ring", "pinky")
@@ -141,8 +142,6 @@ class HandShape:
             side: ``"left"`` or ``"right"``.
             scale: the size relative to the calibrated default hand.
         """
-        from cbgo.hands.poses import default_shape_parameters
-
         calibrated = default_shape_parameters()
         s = calibrated["scale"] * scale
         lengths = _BONE_LENGTHS.copy()

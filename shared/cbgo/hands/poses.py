@@ -16,32 +16,18 @@ Rules:
 
 from __future__ import annotations
 
-import json
 from functools import lru_cache
-from importlib import resources
 
 import numpy as np
 
 from cbgo.hands.model import PARAM_NAMES, HandPose, clip_to_limits
+from cbgo.hands.poses_file import POSES_FILE, default_shape_parameters, load_poses
 from cbgo.wire import STATIC_GESTURES
 
-__all__ = ["STATIC_GESTURES", "correlated_normal", "default_shape_parameters", "gesture_mean",
-           "gesture_pose", "gesture_spread", "load_poses", "parameter_correlation"]
+__all__ = ["POSES_FILE", "STATIC_GESTURES", "correlated_normal", "default_shape_parameters",
+           "gesture_mean", "gesture_pose", "gesture_spread", "load_poses", "parameter_correlation"]
 
-POSES_FILE = "poses.json"
 CLIP_Z = 2.0
-
-
-@lru_cache(maxsize=1)
-def load_poses() -> dict:
-    """Returns the parsed ``poses.json`` (cached)."""
-    text = (resources.files("cbgo.hands") / POSES_FILE).read_text()
-    data = json.loads(text)
-    missing = set(STATIC_GESTURES) - set(data["gestures"])
-    if missing:
-        raise ValueError(f"poses.json lacks {sorted(missing)}; rerun python -m "
-                         "cbgo.hands.calibrate")
-    return data
 
 
 def _vector(name: str, key: str) -> np.ndarray:
@@ -110,12 +96,3 @@ def gesture_pose(name: str, rng: np.random.Generator, variation: float = 1.0) ->
     mean, spread = _vector(name, "mean_deg"), _vector(name, "spread_deg")
     z = correlated_normal(rng)
     return HandPose.from_vector(clip_to_limits(mean + z * spread * variation))
-
-
-def default_shape_parameters() -> dict:
-    """Returns the calibrated default hand: ``poses.json``'s "shape" section.
-
-    Keys: scale, wrist_mm, phalanx_factors (thumb..pinky), thumb_cmc_mm (millimetres at
-    scale 1).
-    """
-    return load_poses()["shape"]
