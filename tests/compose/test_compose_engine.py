@@ -63,7 +63,10 @@ class Project:
         self.port = free_port()
         self.files = [DEPLOY / "compose.yaml", *(DEPLOY / o for o in overrides)]
         self.tmp = tmp
-        self.env = {**os.environ, "CBGO_TAG": TAG, "CBGO_PORT": str(self.port), **(env or {})}
+        # web's page on a free host port too, so projects (and a running cbgo) never clash
+        self.web_port = free_port()
+        self.env = {**os.environ, "CBGO_TAG": TAG, "CBGO_PORT": str(self.port),
+                    "CBGO_WEB_PORT": str(self.web_port), **(env or {})}
         self.endpoint = f"tcp/127.0.0.1:{self.port}"
 
     def compose(self, *args: str, check: bool = True, timeout: float = UP_TIMEOUT_S + 60):
