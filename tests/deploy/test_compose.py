@@ -182,7 +182,7 @@ def test_only_the_router_and_the_default_services_start_by_default(services):
     # both would put two answers on cbgo/robot/act. It sits under a profile until swapped in.
     assert started_by_default(services) == {ROUTER, *DEFAULT_NAMES}
     for info in SERVICES:
-        if info.replaces:
+        if info.replaces or info.optional:
             assert services[info.name].get("profiles"), f"{info.name} needs a profile"
 
 
@@ -221,7 +221,7 @@ def test_the_router_publishes_port_7447_on_the_host(services):
     # The host's port is CBGO_PORT, 7447 by default.
     assert ("${CBGO_PORT:-7447}", "7447") in published_ports(services[ROUTER])
     for name in SERVICE_NAMES:
-        if name == "web":
+        if name in ("web", "foxglove-bridge"):
             continue
         assert not services[name].get("ports"), f"{name} is a client and listens on nothing"
 
@@ -234,6 +234,16 @@ def test_web_publishes_its_page_on_the_hosts_loopback_and_no_zenoh_port(services
     assert web["ports"][0]["host_ip"] == "${CBGO_WEB_BIND:-127.0.0.1}"
     env = environment(web)
     assert env["CBGO_HTTP_PORT"] == "8080" and env["CBGO_HTTP_HOST"] == "0.0.0.0"
+    assert env["ZENOH_CONNECT"] == ROUTER_ENDPOINT
+
+
+def test_the_foxglove_bridge_is_under_its_profile_and_publishes_8765_on_loopback(services):
+    bridge = services["foxglove-bridge"]
+    assert bridge["profiles"] == ["foxglove"]
+    assert published_ports(bridge) == [("${CBGO_FOXGLOVE_PORT:-8765}", "8765")]
+    assert bridge["ports"][0]["host_ip"] == "${CBGO_FOXGLOVE_BIND:-127.0.0.1}"
+    env = environment(bridge)
+    assert env["CBGO_WS_PORT"] == "8765" and env["CBGO_WS_HOST"] == "0.0.0.0"
     assert env["ZENOH_CONNECT"] == ROUTER_ENDPOINT
 
 
