@@ -12,7 +12,7 @@ const pct = (p) => `${(100 * p).toFixed(0)}%`;
 const xyz = (p) => p ? `(${p.map((v) => v.toFixed(2)).join(", ")})` : "—";
 
 function emptyStore() {
-  return { hands: null, scene: null, robot: null, gaze: null, user: null, plan: null,
+  return { hands: null, scene: null, intentScene: null, robot: null, gaze: null, user: null, plan: null,
     intent: null, services: null, stop: null, staticP: [], dynamicP: [], evidence: [],
     events: [], summaries: [], intents: [], feedback: [], now: 0, dirty: new Set(["all"]) };
 }
@@ -45,7 +45,9 @@ function apply(topic, msg, t) {
     "plan/status": () => { store.plan = msg; },
     "robot/stop": () => { store.stop = { ts, reason: msg.reason }; },
     "intent/feedback": () => { store.feedback.push(msg); store.feedback = store.feedback.slice(-10); },
-    "intent": () => { store.intent = msg; store.intents.push(msg); store.intents = store.intents.slice(-20); },
+    // The scene the intent was inferred on: the why-line measures against it, not against a
+    // world the plan has changed since (a picked-up cup is no longer where the user looked).
+    "intent": () => { store.intent = msg; store.intentScene = store.scene; store.intents.push(msg); store.intents = store.intents.slice(-20); },
     "gestures/static": () => store.staticP.push(msg),
     "gestures/dynamic": () => store.dynamicP.push(msg),
     "@evidence": () => store.evidence.push(msg),
@@ -82,7 +84,7 @@ function whyLine(intent) {
   if (!summary) return "the episode's summary was not seen";
   const [gesture, gp] = top(Object.fromEntries(summary.gestures.names.map((n, i) => [n, summary.gestures.probs[i]])), 1)[0] || ["none", 0];
   const parts = [];
-  const objects = store.scene?.objects || [];
+  const objects = (store.intentScene || store.scene)?.objects || [];
   const chosen = objects.find((o) => o.name === intent.object);
   if (summary.focus && chosen) {
     parts.push(`focus (${summary.focus_source}) ${distance(summary.focus, chosen.position).toFixed(2)} m from ${esc(chosen.name)}`);

@@ -18,9 +18,9 @@ export class SceneView {
     this.scene.background = new THREE.Color(0x0d1014);
     this.camera = new THREE.PerspectiveCamera(45, 1, 0.01, 20);
     this.camera.up.set(0, 0, 1);
-    this.camera.position.set(1.2, 0.5, 0.55);
+    this.camera.position.set(1.45, 0.62, 0.62);  // over the user's right shoulder
     this.controls = new OrbitControls(this.camera, canvas);
-    this.controls.target.set(0.42, 0, 0.06);
+    this.controls.target.set(0.6, 0, 0.1);
     this.controls.update();
     this.scene.add(new THREE.AmbientLight(0xffffff, 0.55));
     const sun = new THREE.DirectionalLight(0xffffff, 1.6);
