@@ -129,3 +129,17 @@ def test_a_replay_starting_over_restarts_a_thinned_stream_at_once():
     forwarder = Forwarder(stream_hz=10)
     assert forwarder.forward(keys.GAZE, "cbgo/gaze", example("gaze", ts=50.0))
     assert forwarder.forward(keys.GAZE, "cbgo/gaze", example("gaze", ts=1.0))
+
+
+def test_the_shipped_layout_is_the_one_the_module_builds_and_names_the_models_classes():
+    from pathlib import Path
+
+    from cbgo.foxglove import layout
+
+    repo = Path(__file__).resolve().parents[3]
+    assert (repo / "deploy/foxglove/layout.json").read_text() == layout.layout_json()
+    static = json.loads((repo / "services/static_gesture/models/static-gesture.json")
+                        .read_text())["names"]
+    dynamic = json.loads((repo / "services/dynamic_gesture/models/default.json").read_text())
+    assert list(layout.STATIC_NAMES) == static
+    assert list(layout.DYNAMIC_NAMES) == [t["name"] for t in dynamic["templates"]] + ["none"]
