@@ -1,6 +1,7 @@
 # Two commands do all set-up on a fresh machine:
 #   make demo   creates .venv, installs cbgo, runs `cbgo demo` (DEMO_ARGS='--robot dry' ...)
 #   make test   creates .venv, installs cbgo with test extras, runs ruff and the test suite
+#   make test-fast   ruff and the fast tiers only (unit and deploy tests: no processes), ~3 min
 #   make test-compose   the compose files on a real Docker engine (deploy/ci/compose-test.sh)
 # torch is installed first, pinned to the local CPU wheel, so that nothing pulls a CUDA build.
 
@@ -9,7 +10,7 @@ PY := $(VENV)/bin/python
 TORCH := torch==2.13.0
 STAMP := $(VENV)/.cbgo-installed
 
-.PHONY: demo test test-compose lint install clean
+.PHONY: demo test test-fast test-compose lint install clean
 
 $(STAMP): pyproject.toml setup.py
 	python3 -m venv $(VENV)
@@ -32,6 +33,11 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(VENV)/bin/ruff check shared services tests docs
 	$(PY) -m pytest -q
+
+# The fast tiers (tests/conftest.py marks each test by its folder): a developer's loop.
+test-fast: $(STAMP)
+	$(VENV)/bin/ruff check shared services tests docs
+	$(PY) -m pytest -q -m "unit or deploy"
 
 # The compose files on a real Docker engine (deploy/ci/compose-test.sh): starts the engine
 # where it can (root), builds the image or reuses it (hash of its inputs), runs tests/compose.
