@@ -8,6 +8,9 @@ contract's delivery policy (hand frames: dropped under congestion, express; even
 plans: never dropped). ``--keys`` replays only some keys (relative to the recording's prefix,
 wildcards allowed). ``--restamp`` sets each message's ``ts`` to the time it is sent and leaves
 every other field and byte of meaning as recorded; without it payloads are sent byte for byte.
+Both encodings play: a msgpack recording's payloads as stored, a JSON one's (``cbgo record
+--encoding json``, ``cbgo export``) re-encoded to the msgpack they came from; its derived
+``foxglove/*`` channels are not wire messages and are not replayed.
 
 Examples::
 
@@ -40,8 +43,9 @@ MAX_WAIT_S = 0.1  # longest single wait, so a stop request is seen quickly
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds replay's flags."""
-    parser.add_argument("file", metavar="FILE.mcap", help="a recording (cbgo record, or any "
-                                                          "MCAP file of msgpack channels)")
+    parser.add_argument("file", metavar="FILE.mcap",
+                        help="a recording (cbgo record or cbgo export; any MCAP file of msgpack "
+                             "or JSON channels)")
     parser.add_argument("--speed", type=float, default=1.0, metavar="X",
                         help="play X times faster than recorded [1]")
     parser.add_argument("--loop", action="store_true", help="start again at the end, until "
