@@ -1,7 +1,7 @@
 """What the foxglove-bridge sends to Foxglove for each wire message, and how often.
 
 `Forwarder` is the bridge's logic without a network: it takes one valid wire message and
-returns the JSON messages to log on the live channels, the wire channel and the derived
+returns the messages to log on the live channels, the wire channel and the derived
 Foxglove channels (`cbgo.foxglove.derive`, the same derivation as ``cbgo export``). High-rate
 streams (the contract's DROP topics: hand frames, gaze, static gestures, robot state) are
 thinned to at most ``stream_hz`` per key, by the messages' own ``ts``: a viewer draws at a
@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from cbgo.foxglove.channels import encode
 from cbgo.foxglove.derive import Deriver
 from cbgo.keys import Topic
 
@@ -55,8 +54,8 @@ class Forwarder:
         self.counts = ForwardCounts()
         self._last_ts: dict[str, float] = {}
 
-    def forward(self, topic: Topic, key: str, message: dict) -> list[tuple[str, bytes]]:
-        """Returns [(channel topic, JSON bytes)] to log for one message on `key`.
+    def forward(self, topic: Topic, key: str, message: dict) -> list[tuple[str, dict]]:
+        """Returns [(channel topic, message)] to log for one message on `key`.
 
         Args:
             topic: the contract topic the message came on.
@@ -67,10 +66,10 @@ class Forwarder:
             _add(self.counts.thinned, key)
             return []
         _add(self.counts.forwarded, key)
-        out = [(key, encode(message))]
+        out = [(key, message)]
         for derived in self.deriver.feed(topic.suffix, message):
             _add(self.counts.derived, derived.topic)
-            out.append((derived.topic, encode(derived.message)))
+            out.append((derived.topic, derived.message))
         return out
 
     def _too_soon(self, key: str, message: dict) -> bool:

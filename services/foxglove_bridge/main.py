@@ -27,6 +27,7 @@ from cbgo.errors import ConfigError
 from cbgo.foxglove.channels import (
     MESSAGE_ENCODING,
     SCHEMA_ENCODING,
+    encode,
     foxglove_schema,
     wire_schema,
 )
@@ -111,8 +112,10 @@ class FoxgloveBridge(Service):
         now = time.time_ns()
         with self._lock:
             out = self.forwarder.forward(topic, self.ctx.keys.of(topic), message)
-        for channel_topic, data in out:
-            self.channels[channel_topic].log(data, log_time=now)
+        for channel_topic, out_message in out:
+            channel = self.channels[channel_topic]
+            if channel.has_sinks():  # nobody watching: the state is kept, nothing encoded
+                channel.log(encode(out_message), log_time=now)
 
     def status_extra(self) -> dict:
         """Returns the server's address and the counts per key (called on Zenoh's thread)."""

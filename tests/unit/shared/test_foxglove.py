@@ -123,6 +123,7 @@ def test_the_forwarder_thins_high_rate_keys_and_passes_every_event():
     events = [forwarder.forward(keys.EPISODE_EVENT, "cbgo/episode/event",
                                 example("episode/event", ts=1.0)) for _ in range(5)]
     assert all(len(out) == 2 for out in events)  # the event and its log line
+    assert events[0][1][0] == "foxglove/log"
 
 
 def test_a_replay_starting_over_restarts_a_thinned_stream_at_once():
