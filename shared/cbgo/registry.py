@@ -3,8 +3,9 @@
 A service named ``static-gesture`` lives in ``services/static_gesture/`` (import
 ``cbgo.services.static_gesture``), runs as the console script ``cbgo-static-gesture`` or
 ``python -m cbgo.services.static_gesture``, declares ``cbgo/@alive/static-gesture`` and is the
-compose service ``static-gesture``. A service exists once its package has a ``main`` module;
-`cbgo up` starts only those, and lists nothing it cannot run.
+compose service ``static-gesture``. Each service declares itself in its folder's
+``manifest.py`` (`cbgo.manifest`); `discover` finds them, so `shared/` holds no table of
+services, trainers, benchmarks or figures: `tools` collects them from the manifests.
 
 The seven pipeline services and web (the live page) are the default set. An *alternative*
 (``replaces`` set) is another implementation of a default service's keys, e.g. dry-robot for
@@ -18,77 +19,64 @@ when asked for (``cbgo up --foxglove``, or by name), never by default.
 
 from __future__ import annotations
 
-import importlib.util
-from dataclasses import dataclass
+import importlib
+import pkgutil
+
+from cbgo.manifest import Manifest, Tool
+
+ServiceInfo = Manifest  # the older name of a registry entry: one manifest per service
 
 
-@dataclass(frozen=True)
-class ServiceInfo:
-    """One service of the pipeline.
+def discover() -> tuple[Manifest, ...]:
+    """Returns the manifest of every service package installed, in pipeline order.
 
-    Attributes:
-        name: kebab-case service name.
-        issue: the issue that builds it.
-        summary: what it does, in one line.
-        replaces: the default service whose keys it answers instead, for an alternative
-            implementation; None for a default service.
-        optional: an extra started only when asked for (by name or its own `cbgo up` flag),
-            never in the default set.
+    A service is a package under `cbgo.services` with a ``manifest`` module (`cbgo.manifest`);
+    no table here names them, so a new service folder is found without touching `shared/`.
     """
+    import cbgo.services
 
-    name: str
-    issue: int
-    summary: str
-    replaces: str | None = None
-    optional: bool = False
-
-    @property
-    def role(self) -> str:
-        """The keys it serves, named by the default service that serves them."""
-        return self.replaces or self.name
-
-    @property
-    def package(self) -> str:
-        """The import name, e.g. ``cbgo.services.static_gesture``."""
-        return "cbgo.services." + self.name.replace("-", "_")
-
-    @property
-    def script(self) -> str:
-        """The console script, e.g. ``cbgo-static-gesture``."""
-        return "cbgo-" + self.name
-
-    def exists(self) -> bool:
-        """Returns whether the service has been built (its ``main`` module is importable)."""
+    found = []
+    for module in pkgutil.iter_modules(cbgo.services.__path__):
+        if not module.ispkg:
+            continue
+        name = f"cbgo.services.{module.name}.manifest"
         try:
-            return importlib.util.find_spec(self.package + ".main") is not None
-        except ModuleNotFoundError:
-            return False
+            found.append(importlib.import_module(name).MANIFEST)
+        except ModuleNotFoundError as e:
+            if e.name != name:
+                raise  # a manifest that fails to import is a bug, not a missing service
+    return tuple(sorted(found, key=lambda m: (m.order, m.name)))
 
 
 # In pipeline order: the order `cbgo up` starts them in. web, which only watches (and
 # forwards STOP and feedback from its page), comes first so that it sees the others' first
 # messages.
-SERVICES: tuple[ServiceInfo, ...] = (
-    ServiceInfo("web", 19, "a live web page of what cbgo sees and decides; STOP and feedback"),
-    ServiceInfo("leap-bridge", 3,
-                "hand frames from a Leap Motion, a recording or a simulated user"),
-    ServiceInfo("static-gesture", 4, "per-frame static gesture probabilities (Bayesian MLP)"),
-    ServiceInfo("dynamic-gesture", 5, "stroke segmentation and dynamic gestures (ProMP + DTW)"),
-    ServiceInfo("episode", 6, "gesture episodes, evidence, the gesture vector g, focus, params"),
-    ServiceInfo("intent", 7, "intent (action, object, params) from g and context"),
-    ServiceInfo("planner", 9, "behaviour trees that turn an intent into robot actions"),
-    ServiceInfo("mujoco-sim", 8, "the Panda table-top world in MuJoCo; executes robot actions"),
-    ServiceInfo("dry-robot", 10, "the robot on the symbolic world model, no physics (no "
-                "MuJoCo needed; fast plan checks)", replaces="mujoco-sim"),
-    ServiceInfo("foxglove-bridge", 20, "the live traffic, 3D scene and log as a Foxglove "
-                "WebSocket server", optional=True),
-)
+SERVICES: tuple[Manifest, ...] = discover()
 ROUTER = "router"
 # `cbgo up --robot NAME`: which service answers cbgo/robot/act.
 ROBOTS: dict[str, str] = {"mujoco": "mujoco-sim", "dry": "dry-robot"}
 
 
-def by_name(name: str) -> ServiceInfo:
+def tools(kind: str) -> dict[str, tuple[str, str]]:
+    """Returns the services' tools of one kind: name -> (module, summary).
+
+    Args:
+        kind: ``trainer``, ``benches``, ``figures`` or ``demonstrate`` (a `Manifest` field).
+
+    Raises:
+        ValueError: two services bring a tool of the same name.
+    """
+    out: dict[str, tuple[str, str]] = {}
+    for manifest in SERVICES:
+        value = getattr(manifest, kind)
+        for tool in (value,) if isinstance(value, Tool) else value or ():
+            if tool.name in out:
+                raise ValueError(f"two services bring the {kind} tool {tool.name!r}")
+            out[tool.name] = (tool.module, tool.summary)
+    return out
+
+
+def by_name(name: str) -> Manifest:
     """Returns a service by name.
 
     Raises:
@@ -100,22 +88,22 @@ def by_name(name: str) -> ServiceInfo:
     raise KeyError(f"unknown service {name!r}; known: {', '.join(s.name for s in SERVICES)}")
 
 
-def defaults() -> list[ServiceInfo]:
+def defaults() -> list[Manifest]:
     """Returns the default services (alternatives and optional ones left out), in order."""
     return [s for s in SERVICES if s.replaces is None and not s.optional]
 
 
-def available() -> list[ServiceInfo]:
+def available() -> list[Manifest]:
     """Returns the default services that exist in this installation, in pipeline order."""
     return [s for s in defaults() if s.exists()]
 
 
-def alternatives(name: str) -> list[ServiceInfo]:
+def alternatives(name: str) -> list[Manifest]:
     """Returns the services that can replace the named default service."""
     return [s for s in SERVICES if s.replaces == name]
 
 
-def swap(services: list[ServiceInfo], chosen: ServiceInfo) -> list[ServiceInfo]:
+def swap(services: list[Manifest], chosen: Manifest) -> list[Manifest]:
     """Returns `services` with whichever serves `chosen`'s keys replaced by `chosen`.
 
     The list is unchanged when none of them serves those keys.
@@ -123,7 +111,7 @@ def swap(services: list[ServiceInfo], chosen: ServiceInfo) -> list[ServiceInfo]:
     return [chosen if s.role == chosen.role else s for s in services]
 
 
-def clashes(services: list[ServiceInfo]) -> list[tuple[ServiceInfo, ServiceInfo]]:
+def clashes(services: list[Manifest]) -> list[tuple[Manifest, Manifest]]:
     """Returns the pairs of services that would both answer the same keys."""
     out = []
     for i, first in enumerate(services):

@@ -21,11 +21,13 @@ import argparse
 import importlib
 import json
 
+from cbgo import registry
 from cbgo.cli.common import add_network_arguments, fail
 from cbgo.client import ConnectError
 
-MODULES = {"static": "cbgo.services.static_gesture.demonstrate",
-           "dynamic": "cbgo.services.dynamic_gesture.demonstrate"}
+# kind -> (module, what is demonstrated), from the services' manifests (``demonstrate``)
+DEMONSTRATIONS = registry.tools("demonstrate")
+MODULES = {kind: module for kind, (module, _) in DEMONSTRATIONS.items()}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,10 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     record = actions.add_parser("record", help="record a gesture by demonstration and retrain")
     record.add_argument("name", metavar="NAME", help="the gesture's name (a new or known one)")
     kind = record.add_mutually_exclusive_group(required=True)
-    kind.add_argument("--static", dest="kind", action="store_const", const="static",
-                      help="a hand pose (static-gesture)")
-    kind.add_argument("--dynamic", dest="kind", action="store_const", const="dynamic",
-                      help="a movement (dynamic-gesture)")
+    for name, (_, what) in DEMONSTRATIONS.items():
+        kind.add_argument(f"--{name}", dest="kind", action="store_const", const=name, help=what)
     record.add_argument("--frames", type=int, default=None, metavar="N",
                         help="frames per take (static default: 60)")
     record.add_argument("--takes", type=int, default=1, metavar="N",

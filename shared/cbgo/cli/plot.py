@@ -18,11 +18,11 @@ from __future__ import annotations
 import argparse
 import importlib
 
-# figure -> (module, one-line summary); the module has add_arguments(parser) and run(args).
-FIGURES = {
-    "episode": ("cbgo.services.episode.plot",
-                "gesture likelihoods, evidence, hand visibility and triggers of one episode"),
-}
+from cbgo import registry
+
+# figure -> (module, one-line summary), from the services' manifests (``figures``); the module
+# has add_arguments(parser) and run(args).
+FIGURES = registry.tools("figures")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
