@@ -32,6 +32,7 @@ from pathlib import Path
 
 from cbgo.cli.common import add_network_arguments, fail, session
 from cbgo.errors import RecordingError
+from cbgo.foxglove.derive import DERIVED_TOPICS
 from cbgo.recording import COMPRESSIONS, ENCODINGS, KeyFilter, Recorder
 
 PROGRESS_PERIOD_S = 0.5  # how often the progress line is refreshed on a terminal
@@ -74,9 +75,13 @@ def summary(recorder: Recorder) -> str:
     lines = [f"{'key':<{width}}  {'count':>7}  {'rate Hz':>8}  {'KiB':>9}"]
     for key, s in stats.items():
         lines.append(f"{key:<{width}}  {s.count:>7}  {s.rate_hz:>8.2f}  {s.bytes / 1024:>9.1f}")
-    total = sum(s.count for s in stats.values())
-    plural = "s" if len(stats) != 1 else ""
-    lines.append(f"{total} messages on {len(stats)} key{plural} written to {recorder.path}")
+    wire_keys = [k for k in stats if k not in DERIVED_TOPICS]
+    total = sum(stats[k].count for k in wire_keys)
+    plural = "s" if len(wire_keys) != 1 else ""
+    derived = sum(s.count for k, s in stats.items() if k in DERIVED_TOPICS)
+    lines.append(f"{total} messages on {len(wire_keys)} key{plural}"
+                 + (f" and {derived} derived Foxglove messages" if derived else "")
+                 + f" written to {recorder.path}")
     lines += rejected_lines(recorder.rejected)
     return "\n".join(lines)
 
