@@ -80,6 +80,10 @@ def list_services() -> int:
             how = f"`cbgo up --robot {robots[info.name]}`" if info.name in robots else "by name"
             print(f"\n{info.name} takes the place of {info.replaces} only when asked: {how}, or "
                   f"by name (`cbgo up {info.name} ...`)")
+        if info.optional:
+            how = " `cbgo up --foxglove`, or" if info.name == FOXGLOVE else ""
+            print(f"\n{info.name} is optional, started only when asked:{how} by name "
+                  f"(`cbgo up {info.name} ...`)")
     return 0
 
 
