@@ -188,6 +188,34 @@ def _resolve_hints(cls: type) -> dict[str, Any]:
     return typing.get_type_hints(cls)
 
 
+@dataclass(frozen=True)
+class SettingRow:
+    """One setting as the documentation shows it (`settings_rows`)."""
+
+    flag: str
+    env: str
+    type: str
+    default: Any
+    meaning: str
+
+
+def settings_rows(cls: type) -> list[SettingRow]:
+    """Returns a settings dataclass's settings as documented.
+
+    The same flags, environment variables and help texts as ``--help``
+    (`add_dataclass_arguments`).
+    """
+    hints = _resolve_hints(cls)
+    rows = []
+    for f in dataclasses.fields(cls):
+        default = f.default if f.default is not dataclasses.MISSING else (
+            f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+        rows.append(SettingRow("--" + f.name.replace("_", "-"), env_name(f.name),
+                               _type_name(hints[f.name]), default,
+                               f.metadata.get("help", "")))
+    return rows
+
+
 def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, title: str,
                             shown_defaults: dict | None = None) -> None:
     """Adds one ``--field-name`` flag per dataclass field.

@@ -2,10 +2,11 @@
 
 import importlib
 import importlib.util
+import re
 
 import pytest
 
-from cbgo import registry
+from cbgo import readme_tables, registry
 from cbgo.testing import FakeBus
 
 # settings a unit test needs so that nothing binds a fixed port of this host
@@ -64,3 +65,46 @@ def test_services_are_found_from_their_folders_in_pipeline_order():
         folder = manifest.package.rsplit(".", 1)[1]
         assert folder == manifest.name.replace("-", "_")
         assert manifest.exists()
+
+
+# --- the READMEs ------------------------------------------------------------------------------
+
+SECTIONS = {"Subscribes": "subscribes", "Publishes": "publishes", "Answers": "answers"}
+
+
+def section(text: str, heading: str) -> str:
+    """The body of a README's ``## heading`` section ('' when there is none)."""
+    parts = text.split(f"\n## {heading}\n", 1)
+    return parts[1].split("\n## ", 1)[0] if len(parts) == 2 else ""
+
+
+def table_keys(body: str) -> set[str]:
+    """The keys in the first column of the tables of a section."""
+    return {m.group(1) for m in re.finditer(r"^\| `cbgo/([^`]+)`", body, re.M)}
+
+
+def named_keys(body: str) -> set[str]:
+    """Every key a section names in backticks, in tables or prose."""
+    return set(re.findall(r"`cbgo/([^`]+)`", body))
+
+
+@pytest.mark.parametrize("manifest", registry.SERVICES, ids=lambda m: m.name)
+def test_the_readme_tables_are_generated_from_the_manifest_and_in_step(manifest):
+    text = readme_tables.readme_of(manifest).read_text()
+    assert readme_tables.updated(text, manifest) == text, (
+        "run: python -m cbgo.readme_tables")
+
+
+@pytest.mark.parametrize("manifest", registry.SERVICES, ids=lambda m: m.name)
+def test_the_readme_prose_names_the_keys_of_the_manifest(manifest):
+    # A section's table lists exactly the manifest's keys; a section in prose names them all.
+    text = readme_tables.readme_of(manifest).read_text()
+    for heading, field in SECTIONS.items():
+        declared = {t.suffix for t in getattr(manifest, field)}
+        if field == "answers":
+            declared |= {f"@ctl/{manifest.name}/{v}" for v in ("status", *manifest.controls)}
+        body = section(text, heading)
+        if table_keys(body):
+            assert table_keys(body) == declared, f"## {heading} of {manifest.name}'s README"
+        else:
+            assert declared <= named_keys(body), f"## {heading} of {manifest.name}'s README"
