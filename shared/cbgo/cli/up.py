@@ -66,7 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def list_services() -> int:
-    """Prints every service, whether it is built, and which are alternatives."""
+    """Prints every service from its manifest: built?, alternatives, its keys and tools."""
     for info in registry.SERVICES:
         state = "built" if info.exists() else f"not built yet (issue {info.issue})"
         if info.replaces:
@@ -74,6 +74,7 @@ def list_services() -> int:
         if info.optional:
             state += ", optional"
         print(f"{info.name:<16} {state:<34} {info.summary}")
+        _print_interface(info)
     robots = {v: k for k, v in registry.ROBOTS.items()}
     for info in registry.SERVICES:
         if info.replaces:
@@ -87,8 +88,23 @@ def list_services() -> int:
     return 0
 
 
+def _print_interface(info: registry.Manifest) -> None:
+    """Prints a manifest's keys and tools, indented under its line."""
+    for label, topics in (("reads", info.subscribes), ("writes", info.publishes),
+                          ("answers", info.answers), ("asks", info.asks)):
+        if topics:
+            print(f"{'':17}{label + ':':<9}{', '.join(t.suffix for t in topics)}")
+    tools = [f"cbgo train {info.trainer.name}"] if info.trainer else []
+    tools += [f"cbgo bench {b.name}" for b in info.benches]
+    tools += [f"cbgo plot {f.name}" for f in info.figures]
+    if info.demonstrate:
+        tools.append(f"cbgo gestures record --{info.demonstrate.name}")
+    if tools:
+        print(f"{'':17}{'tools:':<9}{', '.join(tools)}")
+
+
 def chosen_services(names: list[str], robot: str | None = None,
-                    foxglove: bool = False) -> list[registry.ServiceInfo]:
+                    foxglove: bool = False) -> list[registry.Manifest]:
     """Returns the services to start, refusing unknown, unbuilt or clashing ones clearly.
 
     Args:
@@ -109,7 +125,7 @@ def chosen_services(names: list[str], robot: str | None = None,
     return chosen
 
 
-def _built(name: str) -> registry.ServiceInfo:
+def _built(name: str) -> registry.Manifest:
     try:
         info = registry.by_name(name)
     except KeyError as e:
