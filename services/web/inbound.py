@@ -7,8 +7,8 @@ limited rate and answers the page with the reason). Requests are JSON objects of
 
 - ``{"type": "stop", "id": N}``: publish ``cbgo/robot/stop`` (``v``, ``ts``, ``reason``);
 - ``{"type": "feedback", "id": N, "action": A, "object": O|null, "episode": E|null,
-  "user": U|null}``: publish ``cbgo/intent/feedback``; a missing ``user`` is taken from the
-  episode's summary, as the intent service saw it.
+  "user": U|null}``: publish ``cbgo/intent/feedback`` for the user of the episode's summary
+  (as the intent service saw it), else for ``user`` (the page's current user).
 
 ``id`` (optional, an integer) is echoed in the answer so the page knows which click it was.
 """
@@ -86,8 +86,9 @@ def _feedback(request: dict, users: dict[str, str], now: float) -> dict:
         raise RejectedMessage(f"expected one of {', '.join(wire.ACTIONS)}, got {action!r}",
                               "action")
     episode = request.get("episode")
-    user = request.get("user") or (users.get(episode) if isinstance(episode, str) else None)
-    if user is None:
+    # The episode's summary says who made it; the page's guess (the current user) comes second.
+    user = (users.get(episode) if isinstance(episode, str) else None) or request.get("user")
+    if not user:
         raise RejectedMessage("no user: name one, or correct an episode whose summary was "
                               "seen", "user")
     message = {"v": wire.SCHEMA_VERSION, "ts": now, "episode": episode, "user": user,

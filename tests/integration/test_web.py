@@ -20,6 +20,7 @@ from pathlib import Path
 import pytest
 
 from cbgo import registry
+from cbgo.examples import example
 
 REPO = Path(__file__).resolve().parents[2]
 CHROMIUM = "/usr/bin/chromium"
@@ -152,6 +153,33 @@ def test_feedback_publishes_intent_feedback_for_the_episodes_user(page, system):
     assert (message["action"], message["object"], message["user"]) == ("pick_up", "cup2",
                                                                       "user1")
     expect(panel).to_contain_text("sent to cbgo/intent/feedback")
+    assert not page.errors, page.errors
+
+
+def low_confidence(episode: str) -> dict:
+    return example("intent", episode=episode, status="low_confidence", confidence=0.3,
+                   action="pick_up", object="cup2",
+                   p_object={"cup2": 0.4, "cup1": 0.35, "box1": 0.25},
+                   reason="p(object) is spread over three objects")
+
+
+def test_a_low_confidence_intent_can_be_confirmed_or_rejected_from_the_page(page, system):
+    stack, _, _, _ = system
+    feedback = stack.collectors["intent/feedback"]
+    panel = page.locator("[data-testid=feedback]")
+    for episode in ("ep-web-confirm", "ep-web-reject"):
+        # The planner ignores low_confidence intents: nothing moves.
+        stack.put("intent", low_confidence(episode))
+        expect(panel).to_contain_text(f"episode {episode}")
+        expect(panel).to_contain_text("did you mean pick_up(cup2)")
+    panel.locator("[data-testid=feedback-reject]").click()
+    expect(panel).not_to_contain_text("did you mean")
+    stack.put("intent", low_confidence("ep-web-confirm"))
+    panel.locator("[data-testid=feedback-confirm]").click()
+    confirmed = feedback.first(lambda m: m["episode"] == "ep-web-confirm", timeout=10)
+    assert (confirmed["action"], confirmed["object"], confirmed["user"]) == (
+        "pick_up", "cup2", "user1")  # the current user: no summary of this episode was seen
+    assert not [m for m in feedback.items() if m["episode"] == "ep-web-reject"]
     assert not page.errors, page.errors
 
 

@@ -259,7 +259,7 @@ function drawFeedback() {
       <button id="fb-reject" data-testid="feedback-reject">Reject (nothing moved; nothing is sent)</button></div></div>` : ""}
     <div class="row">I meant <select id="fb-action">${options(info.actions, i.action ?? best(i.p_action))}</select>
       on <select id="fb-object"><option value="">(no object)</option>${options(objects, i.object)}</select>
-      <button id="fb-send" data-testid="feedback-send" ${live && i.episode ? "" : "disabled"}>Correct</button></div>
+      <button id="fb-send" data-testid="feedback-send" ${live ? "" : "disabled"}>Correct</button></div>
     <div id="fb-result" class="muted">${live ? "publishes cbgo/intent/feedback: the intent service learns this user's gestures" : "replay: nothing is published"}</div>`;
   $("fb-send").onclick = () => sendFeedback($("fb-action").value, $("fb-object").value || null, i);
   if (low) {
@@ -286,7 +286,8 @@ function answered(msg) {
 }
 
 function sendFeedback(action, object, intent) {
-  request({ type: "feedback", action, object, episode: intent.episode }, (a) => {
+  // The server takes the user from the episode's summary; the current user is its fallback.
+  request({ type: "feedback", action, object, episode: intent.episode, user: store.user }, (a) => {
     $("fb-result").textContent = a.ok ? `sent to ${a.key}: ${action}(${object ?? ""})` : `not sent: ${a.error}`;
     $("fb-result").className = a.ok ? "" : "err";
     if (a.ok) dismissed.add(intent.episode);

@@ -40,6 +40,12 @@ def test_a_bad_request_is_rejected_naming_the_problem(text, problem):
     assert problem in str(info.value)
 
 
+def test_the_summarys_user_wins_over_the_pages_current_user():
+    text = json.dumps({"type": "feedback", "action": "open", "episode": "ep-1", "user": "bob"})
+    assert parse(text, {"ep-1": "alice"}).message["user"] == "alice"
+    assert parse(text, {}).message["user"] == "bob"
+
+
 def test_binary_messages_are_rejected():
     with pytest.raises(RejectedMessage, match="binary"):
         parse(b'{"type": "stop"}', {})
