@@ -6,9 +6,10 @@
 - ``GET /api/replay``: in replay mode, every view of the recording (``[t, topic, view]``);
 - ``GET /ws``: the live stream. A new page first gets what the `Hub` remembers (the newest
   scene, robot state, intent, plan, services, and the recent gesture history), then every view
-  as it comes. Each page has its own bounded queue: a page that cannot keep up loses messages
-  (counted) instead of slowing the service or the other pages. Requests from the page (STOP,
-  feedback) arrive on the same socket and are answered on it.
+  as it comes; a socket opened by another site's page (its ``Origin``) is refused. Each page
+  has its own bounded queue: a page that cannot keep up loses messages (counted) instead of
+  slowing the service or the other pages. Requests from the page (STOP, feedback) arrive on
+  the same socket and are answered on it.
 
 Threads: Zenoh's and the service's threads hand views over with `HttpServer.send`
 (thread-safe); everything else here runs on the server's loop.
@@ -22,6 +23,7 @@ import threading
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
+from urllib.parse import urlsplit
 
 from aiohttp import WSMsgType, web
 
@@ -178,6 +180,12 @@ class HttpServer:
         return web.json_response(self.replay)
 
     async def _socket(self, request: web.Request) -> web.WebSocketResponse:
+        # Browsers let any web site open a WebSocket to 127.0.0.1; only our own page (or a
+        # client that is not a browser, which sends no Origin) may send STOP and feedback.
+        origin = request.headers.get("Origin")
+        if origin and urlsplit(origin).netloc != request.host:
+            log.warning("refused a WebSocket from another site's page (Origin %s)", origin)
+            raise web.HTTPForbidden(text=f"cross-origin WebSocket from {origin} refused")
         ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=64 * 1024)
         await ws.prepare(request)
         queue: asyncio.Queue = asyncio.Queue(CLIENT_QUEUE)

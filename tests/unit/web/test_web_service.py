@@ -80,3 +80,19 @@ def test_a_port_in_use_fails_setup_with_the_fix():
 def test_bad_settings_name_the_range(field, value):
     with pytest.raises(ConfigError, match=field):
         WebSettings(**{field: value})
+
+
+def test_a_websocket_from_another_sites_page_is_refused(bus):
+    import aiohttp
+
+    async def connect(origin: str) -> int:
+        async with aiohttp.ClientSession() as http:
+            try:
+                async with http.ws_connect(ws_url(bus), headers={"Origin": origin}):
+                    return 101
+            except aiohttp.WSServerHandshakeError as e:
+                return e.status
+
+    assert asyncio.run(connect("http://evil.example")) == 403
+    own = bus.service.server.url.rstrip("/")
+    assert asyncio.run(connect(own)) == 101
