@@ -114,3 +114,23 @@ def test_export_refuses_a_truncated_file_and_an_existing_output(tmp_path):
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert len(list(read_recording(out))) == len(SUFFIXES)
+
+
+def test_export_of_a_file_damaged_mid_way_keeps_what_came_before_and_exits_1(tmp_path):
+    source = tmp_path / "s.mcap"
+    sent = session(40)
+    with Recorder(source, chunk_bytes=2048, compression="none") as rec:
+        for key, payload, ns in sent:
+            rec.write(key, payload, ns)
+    data = bytearray(source.read_bytes())
+    middle = len(data) // 2
+    data[middle:middle + 64] = bytes(64)  # zeroes over a chunk's records: its CRC fails
+    source.write_bytes(bytes(data))
+    out = tmp_path / "o.mcap"
+    done = subprocess.run([*CLI, "export", str(source), "-o", str(out)], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode == 1, done.stderr
+    assert "corrupt" in done.stderr and "the messages before it are exported" in done.stderr
+    kept = list(read_recording(out))  # a complete file
+    assert 0 < len(kept) < len(sent)
+    assert [(m.key, m.payload) for m in kept] == [(k, p) for k, p, _ in sent[:len(kept)]]
