@@ -1,7 +1,9 @@
-"""web as a process: a taken port is a clear, logged start-up failure (exit 2), never a hang."""
+"""web as a process: `cbgo web` serves live; a taken port is a logged exit 2, never a hang."""
 
+import signal
 import socket
 import sys
+import urllib.request
 
 from cbgo.testing import Stack
 
@@ -19,3 +21,19 @@ def test_web_on_a_port_in_use_logs_why_and_exits_2(tmp_path):
         line = web.wait_for_line("configuration error")
         assert f"cannot serve HTTP on 127.0.0.1:{port}" in line and "--http-port" in line
         assert "web" not in stack.alive()
+
+
+def test_cbgo_web_serves_the_page_live_and_stops_on_sigterm(tmp_path):
+    with Stack(tmp_path) as stack:
+        stack.start_router()
+        web = stack.spawn("web", [sys.executable, "-m", "cbgo.cli.main", "web", "--http-port",
+                                  "0", "--connect", stack.endpoint])
+        stack.wait_alive(["router", "web"])
+        url = stack.status("web")["url"]
+        assert url in web.wait_for_line("serving the page at")
+        with urllib.request.urlopen(url, timeout=5) as page:
+            assert 'data-testid="scene-3d"' in page.read().decode()
+        with urllib.request.urlopen(url + "static/vendor/three/LICENSE", timeout=5) as licence:
+            assert "MIT License" in licence.read().decode()
+        code, seconds = stack.stop("web", signal.SIGTERM)
+        assert code == 0 and seconds < 2.5
