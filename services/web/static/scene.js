@@ -22,6 +22,8 @@ export class SceneView {
     this.controls = new OrbitControls(this.camera, canvas);
     this.controls.target.set(0.6, 0, 0.1);
     this.controls.update();
+    this.changed = true;  // render only when something moved: an idle page costs no GPU
+    this.controls.addEventListener("change", () => { this.changed = true; });
     this.scene.add(new THREE.AmbientLight(0xffffff, 0.55));
     const sun = new THREE.DirectionalLight(0xffffff, 1.6);
     sun.position.set(1, 0.5, 2);
@@ -43,7 +45,8 @@ export class SceneView {
 
   // The documented workspace (cbgo/sim/info, else cbgo.world.workspace's default grid).
   setWorkspace(ws) {
-    this.static.clear();
+    release(this.static);
+    this.changed = true;
     const area = ws.table_area;
     const pad = 0.08;
     const table = new THREE.Mesh(
@@ -69,6 +72,7 @@ export class SceneView {
     const key = JSON.stringify([scene?.objects, target]);
     if (key === this.objectsKey) return;
     this.objectsKey = key;
+    this.changed = true;
     release(this.objects);
     for (const obj of scene?.objects || []) this.objects.add(objectMesh(obj, obj.name === target));
   }
@@ -76,6 +80,7 @@ export class SceneView {
   // Everything that moves every frame.
   setDynamic(s) {
     release(this.dynamic);
+    this.changed = true;
     const tcp = s.robot?.tcp || s.scene?.robot?.tcp;
     if (tcp) this.addGripper(tcp, s.robot?.gripper_width ?? (s.scene?.robot?.gripper_open ? 0.08 : 0.0));
     for (const hand of s.hands?.hands || []) this.addHand(hand, s.pointing);
@@ -135,8 +140,11 @@ export class SceneView {
     if (this.canvas.width !== Math.round(w * this.renderer.getPixelRatio())) {
       this.renderer.setSize(w, h, false);
       this.camera.aspect = w / h; this.camera.updateProjectionMatrix();
+      this.changed = true;
     }
+    if (!this.changed) return;
     this.renderer.render(this.scene, this.camera);
+    this.changed = false;
   }
 }
 
