@@ -29,7 +29,7 @@ from cbgo import client, keys, wire
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError, RejectedMessage
 from cbgo.runtime import Context, Service, main_for
-from cbgo.services.web import inbound
+from cbgo.services.web import inbound, replay
 from cbgo.services.web.server import HttpServer
 from cbgo.services.web.views import Views, to_json
 from cbgo.world.workspace import workspace_info
@@ -94,7 +94,7 @@ class Web(Service):
             ctx.subscribe(topic, lambda msg, suffix=topic.suffix: self.forward(suffix, msg))
         ctx.publishes(keys.ROBOT_STOP, keys.INTENT_FEEDBACK)
         self.server = HttpServer(self.settings.http_host, self.settings.http_port, self.info,
-                                 self.on_request)
+                                 self.on_request, load_upload=self.load_upload)
         url = self.server.start()
         ctx.log.info("serving the page at %s", url)
         self._send("@workspace", self.workspace)
@@ -143,6 +143,16 @@ class Web(Service):
         return {"mode": "live", "version": cbgo.__version__, "prefix": self.ctx.keys.prefix,
                 "rate_hz": self.settings.rate_hz, "actions": list(wire.ACTIONS),
                 **self.workspace}
+
+    def load_upload(self, path: str) -> tuple[list, dict]:
+        """Reads a recording opened from the page into replay views (any thread).
+
+        Raises:
+            RecordingError: not a complete MCAP recording.
+        """
+        shown = replay.load(path, self.settings.rate_hz, self.ctx.keys.prefix if self.ctx
+                            else "cbgo")
+        return shown.items, shown.skipped
 
     # ------------------------------------------------------------------ requests from the page
 

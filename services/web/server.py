@@ -4,6 +4,8 @@
   with its licence), so the page needs nothing from the internet;
 - ``GET /api/info``: the mode (``live`` or ``replay``), the prefix, the workspace, the version;
 - ``GET /api/replay``: in replay mode, every view of the recording (``[t, topic, view]``);
+- ``POST /api/upload``: a recording opened from the page (the file as the body, at most
+  `MAX_UPLOAD_BYTES`): its views, for the page to scrub through; the live stream goes on;
 - ``GET /ws``: the live stream. A new page first gets what the `Hub` remembers (the newest
   scene, robot state, intent, plan, services, and the recent gesture history), then every view
   as it comes; a socket opened by another site's page (its ``Origin``) is refused. Each page
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import tempfile
 import threading
 from collections import deque
 from collections.abc import Callable
@@ -27,7 +30,7 @@ from urllib.parse import urlsplit
 
 from aiohttp import WSMsgType, web
 
-from cbgo.errors import ConfigError
+from cbgo.errors import ConfigError, RecordingError
 
 STATIC = Path(__file__).parent / "static"
 CLIENT_QUEUE = 512  # views queued per page before its newest are dropped
@@ -35,6 +38,7 @@ CLIENT_QUEUE = 512  # views queued per page before its newest are dropped
 HISTORY = {"episode/event": 200, "episode/summary": 20, "intent": 20, "plan/status": 20,
            "gestures/static": 600, "gestures/dynamic": 100, "@evidence": 300, "@reply": 0}
 START_TIMEOUT_S = 10.0
+MAX_UPLOAD_BYTES = 256 << 20  # a recording opened from the page: minutes of a session
 log = logging.getLogger("cbgo.web")
 
 
@@ -77,12 +81,16 @@ class HttpServer:
         info: returns the ``/api/info`` answer.
         on_request: answers one WebSocket message from a page (returns the answer, JSON text).
         replay: the ``/api/replay`` views, in replay mode.
+        load_upload: reads an uploaded recording's path into (views, skipped); None: no
+            uploads.
     """
 
     def __init__(self, host: str, port: int, info: Callable[[], dict],
-                 on_request: Callable[[str | bytes], str], replay: list | None = None):
+                 on_request: Callable[[str | bytes], str], replay: list | None = None,
+                 load_upload: Callable[[str], tuple[list, dict]] | None = None):
         self.host, self.port = host, port
         self.info, self.on_request, self.replay = info, on_request, replay
+        self.load_upload = load_upload
         self.hub = Hub()
         self.url = ""
         self._loop = asyncio.new_event_loop()
@@ -164,6 +172,7 @@ class HttpServer:
         app.router.add_get("/", self._index)
         app.router.add_get("/api/info", self._info)
         app.router.add_get("/api/replay", self._replay)
+        app.router.add_post("/api/upload", self._upload)
         app.router.add_get("/ws", self._socket)
         app.router.add_static("/static/", STATIC, follow_symlinks=False)
         return app
@@ -178,6 +187,27 @@ class HttpServer:
         if self.replay is None:
             raise web.HTTPNotFound(text="not in replay mode: start `cbgo web --replay FILE`")
         return web.json_response(self.replay)
+
+    async def _upload(self, request: web.Request) -> web.Response:
+        """Turns an uploaded recording (the raw file as the body) into replay views."""
+        if self.load_upload is None:
+            raise web.HTTPNotFound(text="this server does not take uploads")
+        with tempfile.NamedTemporaryFile(suffix=".mcap") as file:
+            size = 0
+            async for chunk in request.content.iter_chunked(1 << 16):
+                size += len(chunk)
+                if size > MAX_UPLOAD_BYTES:
+                    raise web.HTTPRequestEntityTooLarge(MAX_UPLOAD_BYTES, size)
+                file.write(chunk)
+            file.flush()
+            name = request.headers.get("X-File-Name", "upload.mcap")[:200]
+            loop = asyncio.get_running_loop()
+            try:  # reading a recording is CPU work: off the loop, so the live stream goes on
+                items, skipped = await loop.run_in_executor(None, self.load_upload, file.name)
+            except RecordingError as e:
+                raise web.HTTPBadRequest(text=f"{name}: {e}") from None
+        log.info("a page opened the recording %s (%d views)", name, len(items))
+        return web.json_response({"file": name, "items": items, "skipped": skipped})
 
     async def _socket(self, request: web.Request) -> web.WebSocketResponse:
         # Browsers let any web site open a WebSocket to 127.0.0.1; only our own page (or a

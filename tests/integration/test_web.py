@@ -4,8 +4,8 @@ Against ``cbgo up --robot dry`` and ``cbgo demo --no-start --steps 1`` (issue 19
 the services panel lists the running services, the 3D canvas renders, the intent panel shows
 the demo step's ``pick_up(cup1)``, STOP reaches ``cbgo/robot/stop`` and feedback reaches
 ``cbgo/intent/feedback``, a bad request is rejected and counted, the recording replays in the
-same page, and the page logs no error. Screenshots go to ``out/test-artifacts/web/`` (or
-``$CBGO_TEST_ARTIFACTS/web``); look at them.
+same page (``cbgo web --replay``, or opened from the live page), and the page logs no error.
+Screenshots go to ``out/test-artifacts/web/`` (or ``$CBGO_TEST_ARTIFACTS/web``); look at them.
 
 Without chromium the module is skipped, except in CI (``CI=true``), where that fails.
 """
@@ -219,4 +219,23 @@ def test_the_demo_recording_replays_in_the_same_panels(system, browser):
     shot(page, "replay-end")
     page.close()
     stack.stop("web-replay")
+    assert not errors, errors
+
+
+def test_a_recording_opened_from_the_live_page_replays_in_it(system, browser):
+    stack, url, _, work = system
+    page = browser.new_page(viewport={"width": 1500, "height": 1300})
+    errors = []
+    page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
+    page.on("console", lambda m: m.type == "error" and errors.append(f"console: {m.text}"))
+    page.goto(url)
+    expect(page.locator("#link")).to_contain_text("live")
+    page.locator("[data-testid=open-recording]").set_input_files(
+        str(work / "demo" / "session.mcap"))
+    expect(page.locator("[data-testid=replay]")).to_be_visible(timeout=30000)
+    expect(page.locator("#mode")).to_contain_text("replay · session.mcap")
+    expect(page.locator("[data-testid=intent]")).to_contain_text("pick_up(cup1)")
+    page.locator("#scrub").fill("0")
+    expect(page.locator("[data-testid=intent]")).not_to_contain_text("pick_up(cup1)")
+    page.close()
     assert not errors, errors

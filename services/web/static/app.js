@@ -20,7 +20,7 @@ function emptyStore() {
 let store = emptyStore();
 let info = { mode: "live", actions: [] };
 let workspace = null;
-let socket = null, nextId = 1;
+let socket = null, nextId = 1, live = true;
 const pending = new Map();
 const dismissed = new Set();
 let sceneView = null;
@@ -313,15 +313,31 @@ function connect() {
   socket.onopen = () => { $("link").textContent = "live"; $("link").className = "badge on"; };
   socket.onmessage = (e) => { const m = JSON.parse(e.data); apply(m.topic, m.msg, m.t); };
   socket.onclose = () => {
-    $("link").textContent = "disconnected, retrying…"; $("link").className = "badge off";
     for (const [, onAnswer] of pending) onAnswer({ ok: false, error: "the connection closed" });
     pending.clear();
+    if (!live) return;  // replaying an opened recording: the live stream is left on purpose
+    $("link").textContent = "disconnected, retrying…"; $("link").className = "badge off";
     setTimeout(connect, 1000);
   };
 }
 
-async function startReplay() {
-  const items = await (await fetch("/api/replay")).json();
+// Opens a recording from this computer: the server reads it, the page scrubs through it.
+async function openRecording(file) {
+  $("open-result").textContent = `reading ${file.name}…`;
+  const answer = await fetch("/api/upload", { method: "POST", body: file,
+    headers: { "X-File-Name": file.name } });
+  if (!answer.ok) { $("open-result").textContent = `cannot open: ${await answer.text()}`; return; }
+  const { file: name, items } = await answer.json();
+  live = false;
+  socket?.close();
+  info = { ...info, mode: "replay", file: name };
+  store = emptyStore();
+  $("mode").textContent = `replay · ${name}`;
+  $("open-result").innerHTML = `<a href="/">back to live</a>`;
+  startReplay(items);
+}
+
+async function startReplay(items) {
   $("replay").hidden = false;
   $("link").textContent = "replay"; $("link").className = "badge";
   $("replay-file").textContent = info.file || "";
@@ -408,7 +424,8 @@ async function main() {
     <i style="background:#3fb950"></i>TCP<i style="background:#ffe066"></i>target · grid: ${esc(info.source)}`;
   $("stop").onclick = stop;
   document.addEventListener("keydown", (e) => { if (e.key === "Escape") { e.preventDefault(); stop(); } });
-  if (info.mode === "live") connect(); else await startReplay();
+  $("open").onchange = (e) => e.target.files[0] && openRecording(e.target.files[0]);
+  if (info.mode === "live") connect(); else await startReplay(await (await fetch("/api/replay")).json());
   requestAnimationFrame(draw);
 }
 

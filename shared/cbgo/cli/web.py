@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
 
 def serve_replay(args: argparse.Namespace) -> int:
     """Loads the recording and serves it until Ctrl-C/SIGTERM."""
-    from cbgo import __version__
+    from cbgo import __version__, wire
     from cbgo.errors import ConfigError, RecordingError
     from cbgo.services.web import replay
     from cbgo.services.web.server import HttpServer
@@ -73,9 +73,14 @@ def serve_replay(args: argparse.Namespace) -> int:
         fail(str(e), 2)
     skipped = ", ".join(f"{n} {why}" for why, n in shown.skipped.items()) or "none"
     info = {"mode": "replay", "file": shown.file, "prefix": shown.prefix,
-            "version": __version__, "rate_hz": args.rate_hz, "actions": [],
+            "version": __version__, "rate_hz": args.rate_hz, "actions": list(wire.ACTIONS),
             "source": "cbgo.world.workspace (default grid)", "workspace": workspace_info()}
-    server = HttpServer(args.http_host, args.http_port, lambda: info, _refuse, shown.items)
+    def load_upload(path: str) -> tuple[list, dict]:
+        opened = replay.load(path, args.rate_hz, shown.prefix)
+        return opened.items, opened.skipped
+
+    server = HttpServer(args.http_host, args.http_port, lambda: info, _refuse, shown.items,
+                        load_upload)
     try:
         url = server.start()
     except ConfigError as e:
