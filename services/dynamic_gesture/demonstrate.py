@@ -12,7 +12,7 @@ replaying a recording or playing a simulated user — or, with ``--file``, strai
 recording. The template (ProMP + DTW reference + scale) is learned from the new takes plus the
 takes recorded earlier under the same name (``--replace`` drops those), written with its takes to
 ``<data dir>/gestures/dynamic/<NAME>.json``, and ``@ctl/dynamic-gesture/reload`` is queried so
-that a running service uses it at once (it would also find it within its ``poll_s``). Learning
+that a running service uses it at once (it would also find it within its ``--watch-s``). Learning
 a ProMP takes milliseconds, so there is nothing to defer (``--no-train`` is ignored). Without
 ``--user``, the operator last announced on ``cbgo/user`` is recorded as the demonstrator.
 

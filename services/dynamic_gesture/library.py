@@ -55,12 +55,6 @@ def trained_path(data_dir: Path) -> Path:
     return Path(data_dir) / "models" / "dynamic-gesture.json"
 
 
-def default_path(data_dir: Path) -> Path:
-    """Returns the default library in use: the user's trained one if present, else the shipped."""
-    trained = trained_path(data_dir)
-    return trained if trained.is_file() else DEFAULT_PATH
-
-
 def user_dir(data_dir: Path) -> Path:
     """Returns the folder of user-taught dynamic gestures under a data directory."""
     return Path(data_dir) / "gestures" / "dynamic"

@@ -10,8 +10,9 @@ Behaviour (the contract is services/dynamic_gesture/README.md):
   ``window`` is ``[t_start, t_end]`` in the frames' clock, ``seq`` counts publications;
 - templates are the shipped defaults plus the user's (``<data dir>/gestures/dynamic/*.json``,
   taught with ``cbgo gestures record NAME --dynamic``); the control verb
-  ``@ctl/dynamic-gesture/reload`` reloads them at once, and the user folder is polled every
-  ``poll_s`` for changes.
+  ``@ctl/dynamic-gesture/reload`` reloads them at once, and the default library
+  (`cbgo.model_store`: ``--model``, else the one ``cbgo train dynamic`` wrote in the data dir,
+  else the shipped one) and the user folder are polled every ``--watch-s`` for changes.
 """
 
 from __future__ import annotations
@@ -27,9 +28,16 @@ from cbgo import keys, wire
 from cbgo.config import data_dir
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
+from cbgo.model_store import WATCH_HELP, ModelStore, model_help
 from cbgo.runtime import Service, main_for
 from cbgo.services.dynamic_gesture.classifier import DTW_MODES
-from cbgo.services.dynamic_gesture.library import Library, default_path, read_default, user_dir
+from cbgo.services.dynamic_gesture.library import (
+    DEFAULT_PATH,
+    Library,
+    read_default,
+    trained_path,
+    user_dir,
+)
 from cbgo.services.dynamic_gesture.stroke import (
     ReturnFilter,
     Segmenter,
@@ -45,14 +53,14 @@ MODEL = "promp-dtw-1"
 class DynamicGestureSettings(SegmenterConfig):
     """Settings of dynamic-gesture: the segmenter's (see `stroke.SegmenterConfig`) and these."""
 
-    templates: str | None = field(default=None, metadata=_help(
-        "the default template library (JSON) [default: <data dir>/models/dynamic-gesture.json "
-        "if `cbgo train dynamic` wrote one, else the shipped models/default.json]"))
+    model: str | None = field(default=None, metadata=_help(model_help(
+        "the default template library (JSON)", "models/dynamic-gesture.json",
+        "models/default.json")))
     user_dir: str | None = field(default=None, metadata=_help(
         "folder of user-taught gestures [default: <data dir>/gestures/dynamic, data dir from "
         "CBGO_DATA_DIR or ~/.local/share/cbgo]"))
-    poll_s: float = field(default=2.0, metadata=_help(
-        "how often to look for new or changed user gestures, s (0: only on reload)"))
+    watch_s: float = field(default=2.0, metadata=_help(
+        WATCH_HELP + "; also the user gestures"))
     dtw: str = field(default="exact", metadata=_help(
         "exact (fastdtw's compiled exact DTW, else vectorised numpy), numpy (always the "
         "numpy one) or fastdtw (approximate, radius 1)"))
@@ -61,8 +69,8 @@ class DynamicGestureSettings(SegmenterConfig):
         super().__post_init__()
         if self.dtw not in DTW_MODES:
             raise ConfigError(f"dtw {self.dtw!r} is not one of {', '.join(DTW_MODES)}")
-        if self.poll_s < 0:
-            raise ConfigError(f"poll_s={self.poll_s} must not be negative (0 disables)")
+        if self.watch_s < 0:
+            raise ConfigError(f"watch_s={self.watch_s} must not be negative (0 disables)")
 
     def segmenter(self) -> SegmenterConfig:
         """Returns the segmenter part of the settings."""
@@ -82,8 +90,8 @@ class DynamicGesture(Service):
         super().__init__(settings)
         self.segmenter = Segmenter(settings.segmenter())
         self.returns = ReturnFilter(settings.return_s)
-        self.library = Library(Path(settings.templates or default_path(data_dir())),
-                               Path(settings.user_dir) if settings.user_dir
+        self.store = ModelStore(DEFAULT_PATH, trained_path(data_dir()), ("",), settings.model)
+        self.library = Library(self.store.path(), Path(settings.user_dir) if settings.user_dir
                                else user_dir(data_dir()))
         self.classifier = None
         self.seq = 0
@@ -110,11 +118,16 @@ class DynamicGesture(Service):
         ctx.subscribe(keys.HANDS_FRAME, self.on_frame)
         ctx.publishes(keys.GESTURES_DYNAMIC)
         ctx.control("reload", self.on_reload)
-        if self.settings.poll_s > 0:
-            ctx.every(self.settings.poll_s, self.poll)
+        if self.settings.watch_s > 0:
+            ctx.every(self.settings.watch_s, self.poll)
 
     def _load(self) -> None:
-        self.library.load()
+        path, stamps = self.store.snapshot()
+        self.library.default_path = path
+        try:
+            self.library.load()
+        finally:
+            self.store.served(path, stamps)  # a broken library is reported once, not each poll
         self.classifier = self.library.classifier(self.settings.dtw)
         for name, reason in self.library.skipped.items():
             self.ctx.log.warning("skipped user gesture file %s: %s", name, reason)
@@ -162,9 +175,9 @@ class DynamicGesture(Service):
                 "skipped": self.library.skipped, "model": MODEL}
 
     def poll(self) -> None:
-        """Timer: reloads when user gesture files were added, changed or removed."""
-        if self.library.changed():
-            self.ctx.log.info("user gestures changed; reloading")
+        """Timer: reloads when the library or user gesture files were added, changed, removed."""
+        if self.store.changed() or self.library.changed():
+            self.ctx.log.info("templates changed; reloading")
             try:
                 self._load()
                 self.reloads += 1

@@ -10,7 +10,12 @@ Behaviour (the contract is services/intent/README.md):
   correction is stored and that user's model refitted (`personal`), which takes a second or
   two on the event loop;
 - control verb ``@ctl/intent/last``: the last intent (optionally ``{user}``'s), its episode and
-  user — what ``cbgo feedback`` corrects by default.
+  user — what ``cbgo feedback`` corrects by default;
+- the model (`cbgo.model_store`, the same rule as the gesture services'): ``--model``, else
+  ``<data dir>/models/intent-ours`` once ``cbgo train intent`` wrote it, else the shipped one;
+  its files are polled every ``--watch-s`` and ``@ctl/intent/reload`` reloads at once
+  (optionally ``{model: PATH}``); a model that does not load keeps the old one in service. The
+  intents already published stay correctable (the history moves to the new model).
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from cbgo import keys, wire
 from cbgo.config import data_dir
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
+from cbgo.model_store import WATCH_HELP, ModelStore, model_help
 from cbgo.runtime import Service, main_for
 from cbgo.services.intent.decide import DecisionConfig
 from cbgo.services.intent.engine import InputError, IntentEngine
@@ -47,25 +53,28 @@ def user_model_path(kind: str = "ours", env=None) -> Path:
     return data_dir(env) / "models" / f"intent-{kind.lower()}"
 
 
+def model_store(configured: str | None = None, env=None) -> ModelStore:
+    """Returns where the served model comes from (`cbgo.model_store`)."""
+    return ModelStore(default_model_path().with_suffix(""), user_model_path("ours", env),
+                      (".pt", ".json"), configured)
+
+
 def served_model_path(env=None) -> Path:
     """Returns the model the service serves by default: the user's trained one, else shipped.
 
     The user's is ``<data dir>/models/intent-ours`` when both its ``.pt`` and ``.json`` exist.
     """
-    user = user_model_path("ours", env)
-    if user.with_suffix(".pt").is_file() and user.with_suffix(".json").is_file():
-        return user.with_suffix(".json")
-    return default_model_path()
+    return model_store(env=env).path().with_suffix(".json")
 
 
 @dataclass
 class IntentSettings:
     """Settings of the intent service (flags ``--min-confidence`` ... or env ``CBGO_...``)."""
 
-    model_path: str | None = field(default=None, metadata=_help(
-        "the model to serve (<base>.pt + <base>.json, from `cbgo train intent`); default: "
-        "<data dir>/models/intent-ours if `cbgo train intent` wrote it, else the shipped "
-        "services/intent/models/ours"))
+    model: str | None = field(default=None, metadata=_help(model_help(
+        "the model to serve (<base>.pt + <base>.json, from `cbgo train intent`)",
+        "models/intent-ours", "services/intent/models/ours")))
+    watch_s: float = field(default=1.0, metadata=_help(WATCH_HELP))
     min_confidence: float = field(default=0.5, metadata=_help(
         "below this probability the best feasible intent is low_confidence and not acted on"))
     accept_repairable: bool = field(default=True, metadata=_help(
@@ -94,6 +103,8 @@ class IntentSettings:
             raise ConfigError(f"pour_angle_deg={self.pour_angle_deg} must be within (0, 180]")
         if self.update_steps < 1:
             raise ConfigError("update_steps must be at least 1")
+        if self.watch_s < 0:
+            raise ConfigError(f"watch_s={self.watch_s} must be 0 (off) or positive")
 
 
 class Intent(Service):
@@ -116,25 +127,88 @@ class Intent(Service):
         Called once before the service is announced alive.
         """
         torch.set_num_threads(1)  # tiny networks: threads only cost (2-core machines)
-        s = self.settings
         self.ctx = ctx
-        model = OursModel.load(s.model_path or served_model_path())
-        personal = None
-        if s.personalise:
-            root = Path(s.personal_dir) if s.personal_dir else data_dir() / "intent"
-            personal = PersonalStore(root, model, s.default_profile, s.update_steps,
-                                     accept_repairable=s.accept_repairable)
-        self.engine = IntentEngine(model, DecisionConfig(s.min_confidence, s.accept_repairable,
-                                                         s.pour_angle_deg),
-                                   personal, s.posterior_samples, s.default_profile)
+        self.store = model_store(self.settings.model)
+        path, stamps = self.store.snapshot()
+        self.engine = self.build_engine(OursModel.load(path.with_suffix(".json")))
+        self.store.served(path, stamps)
         ctx.subscribe(keys.SCENE_STATE, self.on_scene)
         ctx.subscribe(keys.USER, self.on_user)
         ctx.subscribe(keys.EPISODE_SUMMARY, self.on_summary)
         ctx.subscribe(keys.INTENT_FEEDBACK, self.on_feedback)
         ctx.queryable(keys.INTENT_INFER, self.on_infer)
         ctx.control("last", self.on_last)
+        ctx.control("reload", self.on_reload)
         ctx.publishes(keys.INTENT)
-        ctx.log.info("serving model %s", model.name)
+        if self.settings.watch_s > 0:
+            ctx.every(self.settings.watch_s, self.on_watch)
+        ctx.log.info("serving model %s from %s", self.engine.model.name, path)
+
+    def build_engine(self, model: OursModel) -> IntentEngine:
+        """Returns the engine serving `model`, with the users' personal models on top of it."""
+        s = self.settings
+        personal = None
+        if s.personalise:
+            root = Path(s.personal_dir) if s.personal_dir else data_dir() / "intent"
+            personal = PersonalStore(root, model, s.default_profile, s.update_steps,
+                                     accept_repairable=s.accept_repairable)
+        return IntentEngine(model, DecisionConfig(s.min_confidence, s.accept_repairable,
+                                                  s.pour_angle_deg),
+                            personal, s.posterior_samples, s.default_profile)
+
+    def _swap(self, path: Path) -> IntentEngine:
+        """Loads the model at `path` and puts it in service; returns the previous engine.
+
+        Raises:
+            ConfigError: it does not load (the old one stays).
+        """
+        engine = self.build_engine(OursModel.load(path.with_suffix(".json")))
+        previous, self.engine = self.engine, engine
+        # the intents published so far stay correctable by cbgo feedback
+        engine.history, engine.last, engine.last_by_user = (previous.history, previous.last,
+                                                            previous.last_by_user)
+        return previous
+
+    def on_reload(self, query: dict) -> dict:
+        """Control verb ``reload``: loads the model again (or ``{model: PATH}``).
+
+        Raises:
+            QueryError: the model does not load; the old one keeps serving.
+        """
+        requested = query.get("model")
+        if requested is not None and not (isinstance(requested, str) and requested):
+            raise QueryError("model must be a path string")
+        path = Path(requested) if requested else self.store.path()
+        stamps = self.store.stamps(path)  # before loading, as `ModelStore.snapshot`
+        try:
+            previous = self._swap(path)
+        except ConfigError as e:
+            self.ctx.counters.error("reload", str(e))
+            raise QueryError(f"reload failed, still serving {self.engine.model.name}: "
+                             f"{e}") from None
+        if requested:
+            self.settings.model = self.store.configured = requested
+        self.store.served(path, stamps)
+        self.ctx.log.info("reloaded: %s -> %s (%s)", previous.model.name,
+                          self.engine.model.name, path)
+        return {"v": wire.SCHEMA_VERSION, "ok": True, "model": self.engine.model.name,
+                "previous": previous.model.name, "path": str(path)}
+
+    def on_watch(self) -> None:
+        """Called every ``--watch-s`` s: reloads the model if its files changed or moved."""
+        if not self.store.changed():
+            return
+        path, stamps = self.store.snapshot()
+        self.store.served(path, stamps)  # a broken file is reported once, not at each poll
+        try:
+            previous = self._swap(path)
+        except ConfigError as e:
+            self.ctx.counters.error("watch", str(e))
+            self.ctx.log.error("model files changed but do not load; still serving %s: %s",
+                               self.engine.model.name, e)
+            return
+        self.ctx.log.info("model files changed: %s -> %s (%s)", previous.model.name,
+                          self.engine.model.name, path)
 
     def on_scene(self, msg: dict) -> None:
         """Keeps the latest scene for the next summary."""

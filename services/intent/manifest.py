@@ -11,7 +11,7 @@ MANIFEST = Manifest(
     subscribes=(keys.EPISODE_SUMMARY, keys.SCENE_STATE, keys.USER, keys.INTENT_FEEDBACK),
     publishes=(keys.INTENT,),
     answers=(keys.INTENT_INFER,),
-    controls=("last",),
+    controls=("last", "reload"),
     service="cbgo.services.intent.main:Intent",
     trainer=Tool(
         "intent", "cbgo.services.intent.train", "intent model (order-invariant Bayesian) on D4"

@@ -45,6 +45,7 @@ from cbgo import bayes
 from cbgo.config import data_dir
 from cbgo.errors import ConfigError
 from cbgo.hands import features as F
+from cbgo.model_store import ModelStore
 from cbgo.services.static_gesture import invariant
 
 KIND = "static-gesture"
@@ -53,6 +54,9 @@ NONE = "none"
 class where the model has one")."""
 MODEL_BASENAME = "static-gesture"
 DEFAULT_SAMPLES = 32
+
+
+MODEL_SUFFIXES = (".pt", ".json")  # one model: weights and metadata beside each other
 
 
 def shipped_model_path() -> Path:
@@ -72,10 +76,7 @@ def default_model_path(env: Any = None) -> Path:
     Args:
         env: the environment to read ``CBGO_DATA_DIR`` from (os.environ by default).
     """
-    user = user_model_path(env)
-    if user.with_suffix(".pt").is_file() and user.with_suffix(".json").is_file():
-        return user
-    return shipped_model_path()
+    return ModelStore(shipped_model_path(), user_model_path(env), MODEL_SUFFIXES).path()
 
 
 def model_files(path: str | Path) -> tuple[Path, Path]:
@@ -84,18 +85,6 @@ def model_files(path: str | Path) -> tuple[Path, Path]:
     if base.suffix in (".pt", ".json"):
         base = base.with_suffix("")
     return base.with_suffix(".pt"), base.with_suffix(".json")
-
-
-def file_stamps(path: str | Path) -> tuple:
-    """Returns (mtime_ns, size) of both model files (None for a missing one), to detect changes."""
-    out = []
-    for f in model_files(path):
-        try:
-            st = f.stat()
-            out.append((st.st_mtime_ns, st.st_size))
-        except OSError:
-            out.append(None)
-    return tuple(out)
 
 
 def weights_sha256(state_dict: dict) -> str:

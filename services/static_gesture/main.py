@@ -29,12 +29,14 @@ import numpy as np
 from cbgo import keys, wire
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
+from cbgo.model_store import WATCH_HELP, ModelStore, model_help
 from cbgo.runtime import Service, main_for
 from cbgo.services.static_gesture.classifier import (
     DEFAULT_SAMPLES,
+    MODEL_SUFFIXES,
     StaticClassifier,
-    default_model_path,
-    file_stamps,
+    shipped_model_path,
+    user_model_path,
 )
 
 
@@ -42,13 +44,11 @@ from cbgo.services.static_gesture.classifier import (
 class StaticGestureSettings:
     """Settings of static-gesture (flags ``--model`` ... or env ``CBGO_MODEL`` ...)."""
 
-    model: str | None = field(default=None, metadata=_help(
-        "model base path (.pt + .json); default: the user's model in "
-        "data_dir()/models/static-gesture if present, else the shipped one"))
+    model: str | None = field(default=None, metadata=_help(model_help(
+        "model base path (.pt + .json)", "models/static-gesture", "one")))
     samples: int = field(default=DEFAULT_SAMPLES, metadata=_help(
         "posterior samples averaged per prediction"))
-    watch_s: float = field(default=1.0, metadata=_help(
-        "poll the model files for changes every S seconds (0: never)"))
+    watch_s: float = field(default=1.0, metadata=_help(WATCH_HELP))
 
     def __post_init__(self):
         if not 1 <= self.samples <= 1024:
@@ -68,8 +68,7 @@ class StaticGesture(Service):
     def __init__(self, settings: StaticGestureSettings):
         super().__init__(settings)
         self.classifier: StaticClassifier | None = None
-        self._stamps: tuple = ()
-        self._watched: Path | None = None
+        self.store: ModelStore | None = None
         self.hands = 0
 
     def setup(self, ctx) -> None:
@@ -78,8 +77,9 @@ class StaticGesture(Service):
         A model that does not load raises `ConfigError` (the process exits with code 2).
         """
         self.ctx = ctx
-        path = self.model_path()
-        stamps = file_stamps(path)
+        self.store = ModelStore(shipped_model_path(), user_model_path(), MODEL_SUFFIXES,
+                                self.settings.model)
+        path, stamps = self.store.snapshot()
         self._install(StaticClassifier.load(path, self.settings.samples), path, stamps)
         ctx.log.info("model %s loaded from %s: %s", self.classifier.model_id, path,
                      ", ".join(self.classifier.names))
@@ -89,14 +89,11 @@ class StaticGesture(Service):
         if self.settings.watch_s > 0:
             ctx.every(self.settings.watch_s, self.on_watch)
 
-    def model_path(self) -> Path:
-        """Returns the model to use now: the configured path, or the default (re-resolved)."""
-        return Path(self.settings.model) if self.settings.model else default_model_path()
-
     def _install(self, classifier: StaticClassifier, path: Path, stamps: tuple) -> None:
-        # The stamps are taken BEFORE loading: files replaced meanwhile differ from them and are
-        # loaded again on the next poll (and the weights' hash refuses a mixed pair).
-        self.classifier, self._watched, self._stamps = classifier, path, stamps
+        # The stamps were taken BEFORE loading (`ModelStore.snapshot`): files replaced meanwhile
+        # are loaded again on the next poll (and the weights' hash refuses a mixed pair).
+        self.classifier = classifier
+        self.store.served(path, stamps)
 
     def on_hands_frame(self, msg: dict) -> list:
         """Called for each valid hands/frame: returns one gestures/static message per hand."""
@@ -126,16 +123,16 @@ class StaticGesture(Service):
         requested = query.get("model")
         if requested is not None and not (isinstance(requested, str) and requested):
             raise QueryError("model must be a path string")
-        path = Path(requested) if requested else self.model_path()
+        path = Path(requested) if requested else self.store.path()
+        stamps = self.store.stamps(path)  # before loading, as `ModelStore.snapshot`
         previous = self.classifier.model_id
-        stamps = file_stamps(path)
         try:
             classifier = StaticClassifier.load(path, self.settings.samples)
         except ConfigError as e:
             self.ctx.counters.error("reload", str(e))
             raise QueryError(f"reload failed, still serving {previous}: {e}") from None
         if requested:
-            self.settings.model = str(path)
+            self.settings.model = self.store.configured = requested
         self._install(classifier, path, stamps)
         self.ctx.log.info("reloaded: %s -> %s (%s)", previous, classifier.model_id, path)
         return {"v": wire.SCHEMA_VERSION, "ok": True, "model": classifier.model_id,
@@ -143,15 +140,14 @@ class StaticGesture(Service):
 
     def on_watch(self) -> None:
         """Called every ``--watch-s`` s: reloads the model if its files changed or moved."""
-        path = self.model_path()
-        stamps = file_stamps(path)
-        if path == self._watched and stamps == self._stamps:
+        if not self.store.changed():
             return
+        path, stamps = self.store.snapshot()
         previous = self.classifier.model_id
         try:
             classifier = StaticClassifier.load(path, self.settings.samples)
         except ConfigError as e:
-            self._watched, self._stamps = path, stamps  # report a broken file once
+            self.store.served(path, stamps)  # report a broken file once
             self.ctx.counters.error("watch", str(e))
             self.ctx.log.error("model files changed but do not load; still serving %s: %s",
                                previous, e)

@@ -389,9 +389,13 @@ def load_module(path: str | Path, build: Callable[[dict[str, Any]], nn.Module]
     pt, js = base.with_suffix(".pt"), base.with_suffix(".json")
     try:
         meta = json.loads(js.read_text())
-        state = torch.load(pt, weights_only=True)
-    except (OSError, json.JSONDecodeError, RuntimeError) as e:
+    except (OSError, json.JSONDecodeError) as e:
         raise ConfigError(f"cannot load model {base}: {e}") from None
+    try:
+        state = torch.load(pt, weights_only=True)
+    except Exception as e:  # noqa: BLE001 - a torn or foreign file fails in any of the unpickler's ways
+        raise ConfigError(f"cannot load model {base}: weights {pt.name} unreadable "
+                          f"({type(e).__name__}: {e})") from None
     if meta.get("format") != FORMAT:
         raise ConfigError(f"{js} is not a {FORMAT} model (format {meta.get('format')!r})")
     try:

@@ -19,7 +19,7 @@ SWIPE_UP = [("hold", 0.5), ("move", 0.45, (0.0, 160.0, 0.0)), ("hold", 0.5)]
 
 @pytest.fixture
 def bus(tmp_path):
-    service = DynamicGesture(DynamicGestureSettings(user_dir=str(tmp_path), poll_s=1.0))
+    service = DynamicGesture(DynamicGestureSettings(user_dir=str(tmp_path), watch_s=1.0))
     bus = FakeBus(service)
     yield bus
     bus.stop()

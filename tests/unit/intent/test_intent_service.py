@@ -189,3 +189,65 @@ def test_no_accept_repairable_refuses_put_into_a_closed_drawer(tmp_path):
         assert "drawer1 is closed" in reply["reason"]
     finally:
         bus.stop()
+
+
+# --------------------------------------------------------------------------- the model store
+
+
+def model_copy(folder, name, model_id):
+    """The shipped model copied to folder/name.{pt,json} under another model id."""
+    from cbgo.services.intent.main import default_model_path
+
+    shipped = default_model_path()
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"{name}.pt").write_bytes(shipped.with_suffix(".pt").read_bytes())
+    meta = json.loads(shipped.read_text())
+    meta["model_id"] = model_id
+    (folder / f"{name}.json").write_text(json.dumps(meta))
+    return folder / name
+
+
+def test_reload_serves_another_model_and_the_last_intent_stays_correctable(tmp_path):
+    first = model_copy(tmp_path / "m", "a", "intent-ours-a")
+    second = model_copy(tmp_path / "m", "b", "intent-ours-b")
+    bus = FakeBus(Intent(IntentSettings(personal_dir=str(tmp_path / "p"), model=str(first),
+                                        watch_s=0.0)))
+    ok, reply = bus.query(keys.INTENT_INFER, query())
+    assert ok and reply["model"] == "intent-ours-a"
+    ok, reply = bus.query("reload", {"model": str(second)})
+    assert ok and (reply["model"], reply["previous"]) == ("intent-ours-b", "intent-ours-a")
+    ok, reply = bus.query(keys.INTENT_INFER, query())
+    assert ok and reply["model"] == "intent-ours-b"
+    ok, last = bus.query("last", {})
+    assert ok and last["intent"] is not None  # the history moved to the new model
+    bus.stop()
+
+
+def test_a_broken_model_on_reload_is_an_error_reply_and_the_old_one_keeps_serving(tmp_path):
+    base = model_copy(tmp_path / "m", "a", "intent-ours-a")
+    bus = FakeBus(Intent(IntentSettings(personal_dir=str(tmp_path / "p"), model=str(base),
+                                        watch_s=0.0)))
+    base.with_suffix(".pt").write_bytes(b"half a model")
+    ok, reason = bus.query("reload", {})
+    assert not ok and "reload failed, still serving intent-ours-a" in reason
+    ok, reason = bus.query("reload", {"model": 3})
+    assert not ok and "model must be a path" in reason
+    ok, reply = bus.query(keys.INTENT_INFER, query())
+    assert ok and reply["model"] == "intent-ours-a"
+    bus.stop()
+
+
+def test_the_poll_picks_up_the_users_first_trained_model_and_a_broken_one_once(tmp_path,
+                                                                               monkeypatch):
+    monkeypatch.setenv("CBGO_DATA_DIR", str(tmp_path / "data"))
+    bus = FakeBus(Intent(IntentSettings(personal_dir=str(tmp_path / "p"), watch_s=1.0)))
+    shipped = bus.service.engine.model.name
+    model_copy(tmp_path / "data" / "models", "intent-ours", "intent-ours-mine")
+    bus.tick(1.0)
+    assert bus.service.engine.model.name == "intent-ours-mine" != shipped
+    (tmp_path / "data" / "models" / "intent-ours.pt").write_bytes(b"torn")
+    bus.tick(1.0)
+    bus.tick(1.0)
+    assert bus.service.engine.model.name == "intent-ours-mine"
+    assert bus.counters.errors == 1
+    bus.stop()
