@@ -28,7 +28,7 @@ from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import urlsplit
 
-from aiohttp import WSMsgType, web
+from aiohttp import WSCloseCode, WSMsgType, web
 
 from cbgo.errors import ConfigError, RecordingError
 
@@ -95,6 +95,7 @@ class HttpServer:
         self.url = ""
         self._loop = asyncio.new_event_loop()
         self._runner: web.AppRunner | None = None
+        self._sockets: set[web.WebSocketResponse] = set()
         self._thread: threading.Thread | None = None
 
     # ------------------------------------------------------------------ life cycle
@@ -150,7 +151,9 @@ class HttpServer:
         self._loop.run_forever()
 
     async def _bind(self) -> str:
-        self._runner = web.AppRunner(self._app(), access_log=None, handle_signals=False)
+        # A short grace: the service must exit within 2 s of SIGTERM, open pages or not.
+        self._runner = web.AppRunner(self._app(), access_log=None, handle_signals=False,
+                                     shutdown_timeout=0.5)
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.port)
         try:
@@ -162,6 +165,9 @@ class HttpServer:
         return f"http://{host}:{port}/" if ":" not in host else f"http://[{host}]:{port}/"
 
     async def _close(self) -> None:
+        # Close the pages' sockets first: the runner's cleanup would wait for their handlers.
+        for ws in list(self._sockets):
+            await ws.close(code=WSCloseCode.GOING_AWAY, message=b"cbgo-web is stopping")
         if self._runner is not None:
             await self._runner.cleanup()
 
@@ -222,6 +228,7 @@ class HttpServer:
         for text in self.hub.snapshot():
             self.hub.offer(queue, text)
         self.hub.pages.add(queue)
+        self._sockets.add(ws)
         writer = asyncio.ensure_future(self._write(ws, queue))
         try:
             async for message in ws:
@@ -231,6 +238,7 @@ class HttpServer:
                     log.info("a page's socket failed: %s", ws.exception())
         finally:
             self.hub.pages.discard(queue)
+            self._sockets.discard(ws)
             writer.cancel()
         return ws
 

@@ -96,3 +96,20 @@ def test_a_websocket_from_another_sites_page_is_refused(bus):
     assert asyncio.run(connect("http://evil.example")) == 403
     own = bus.service.server.url.rstrip("/")
     assert asyncio.run(connect(own)) == 101
+
+
+def test_stopping_with_a_page_connected_takes_well_under_two_seconds():
+    import time
+
+    import aiohttp
+
+    bus = FakeBus(Web(WebSettings(http_port=0)))
+
+    async def connected_then_stopped() -> float:
+        async with aiohttp.ClientSession() as http, http.ws_connect(ws_url(bus)) as ws:
+            await ws.receive()  # the first view: the page is connected
+            t0 = time.monotonic()
+            await asyncio.get_running_loop().run_in_executor(None, bus.stop)
+            return time.monotonic() - t0
+
+    assert asyncio.run(connected_then_stopped()) < 1.5
