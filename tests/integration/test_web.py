@@ -172,6 +172,7 @@ def test_a_low_confidence_intent_can_be_confirmed_or_rejected_from_the_page(page
         stack.put("intent", low_confidence(episode))
         expect(panel).to_contain_text(f"episode {episode}")
         expect(panel).to_contain_text("did you mean pick_up(cup2)")
+    shot(page, "live-low-confidence")
     panel.locator("[data-testid=feedback-reject]").click()
     expect(panel).not_to_contain_text("did you mean")
     stack.put("intent", low_confidence("ep-web-confirm"))
