@@ -53,6 +53,8 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
+from cbgo.config import described as _help
+from cbgo.errors import ConfigError
 from cbgo.wire import DYNAMIC_GESTURES, STATIC_GESTURES
 
 NONE_NAMES = ("none", "no_gesture")
@@ -62,25 +64,38 @@ NONE_NAMES = ("none", "no_gesture")
 class EvidenceSettings:
     """Parameters of the evidence model (see the module docstring).
 
-    Attributes:
-        threshold: E_t, the evidence at which a gesture triggers (0..1].
-        static_tau_s: time constant of static evidence, s.
-        dynamic_tau_s: time constant of dynamic evidence, s.
-        max_gap_s: the longest time one static message can cover, s.
-        dynamic_hold_s: how long a dynamic window stays in the current vector after it ends, s.
-        rearm: let a gesture trigger again within an episode after it was released.
-        release: re-arm once all of a gesture's evidence is below release × threshold.
-        none_names: class names meaning "no gesture".
+    Declared once, here: the episode service takes them as its ``--evidence.*`` settings.
     """
 
-    threshold: float = 0.6
-    static_tau_s: float = 0.3
-    dynamic_tau_s: float = 0.15
-    max_gap_s: float = 0.1
-    dynamic_hold_s: float = 0.5
-    rearm: bool = False
-    release: float = 0.5
-    none_names: tuple[str, ...] = NONE_NAMES
+    threshold: float = field(default=0.6, metadata=_help(
+        "evidence threshold E_t at which a gesture triggers (0-1]"))
+    static_tau_s: float = field(default=0.3, metadata=_help(
+        "time constant of static gesture evidence, s"))
+    dynamic_tau_s: float = field(default=0.15, metadata=_help(
+        "time constant of dynamic gesture evidence, s"))
+    max_gap_s: float = field(default=0.1, metadata=_help(
+        "longest time one static message counts for, s"))
+    dynamic_hold_s: float = field(default=0.5, metadata=_help(
+        "how long a dynamic window stays in the current probability vector, s"))
+    rearm: bool = field(default=False, metadata=_help(
+        "let a gesture trigger again in the same episode once its evidence fell below "
+        "release x E_t (default: once per episode)"))
+    release: float = field(default=0.5, metadata=_help(
+        "with rearm: a gesture re-arms once its evidence is below this fraction of E_t"))
+    none_names: tuple[str, ...] = field(default=NONE_NAMES, metadata=_help(
+        "class names that mean 'no gesture' (never trigger, not in g)"))
+
+    def __post_init__(self):
+        self.none_names = tuple(self.none_names)
+        if not 0.0 < self.threshold <= 1.0:
+            raise ConfigError(f"threshold={self.threshold} must be within (0, 1]")
+        for name in ("static_tau_s", "dynamic_tau_s", "max_gap_s"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"{name}={getattr(self, name)} must be positive")
+        if self.dynamic_hold_s < 0:
+            raise ConfigError(f"dynamic_hold_s={self.dynamic_hold_s} must not be negative")
+        if not 0.0 < self.release < 1.0:
+            raise ConfigError(f"release={self.release} must be within (0, 1)")
 
 
 @dataclass

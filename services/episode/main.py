@@ -36,7 +36,7 @@ from cbgo.errors import ConfigError
 from cbgo.examples import example
 from cbgo.runtime import Service, main_for
 from cbgo.services.episode.builder import BuilderSettings, EpisodeBuilder
-from cbgo.services.episode.evidence import NONE_NAMES, EvidenceSettings, Trigger
+from cbgo.services.episode.evidence import EvidenceSettings, Trigger
 from cbgo.services.episode.segmenter import Boundary, Segmenter
 from cbgo.transform import default_to_base, parse_to_base
 
@@ -55,21 +55,8 @@ class EpisodeSettings:
     clock_slack_s: float = field(default=0.35, metadata=_help(
         "the local clock ends an episode only this long after the debounce (frames that "
         "arrive late must not split a gesture; frame time stamps end it on time), s"))
-    threshold: float = field(default=0.6, metadata=_help(
-        "evidence threshold E_t at which a gesture triggers (0-1]"))
-    static_tau_s: float = field(default=0.3, metadata=_help(
-        "time constant of static gesture evidence, s"))
-    dynamic_tau_s: float = field(default=0.15, metadata=_help(
-        "time constant of dynamic gesture evidence, s"))
-    max_gap_s: float = field(default=0.1, metadata=_help(
-        "longest time one static message counts for, s"))
-    dynamic_hold_s: float = field(default=0.5, metadata=_help(
-        "how long a dynamic window stays in the current probability vector, s"))
-    rearm: bool = field(default=False, metadata=_help(
-        "let a gesture trigger again in the same episode once its evidence fell below half "
-        "of E_t (default: once per episode)"))
-    none_names: list[str] = field(default_factory=lambda: list(NONE_NAMES), metadata=_help(
-        "class names that mean 'no gesture' (never trigger, not in g)"))
+    evidence: EvidenceSettings = field(default_factory=EvidenceSettings, metadata=_help(
+        "the evidence model (`evidence.EvidenceSettings`): --evidence.threshold ..."))
     user: str = field(default="user1", metadata=_help(
         "the operator until cbgo/user names one"))
     focus: list[str] = field(default_factory=lambda: list(FOCUS_SOURCES), metadata=_help(
@@ -91,14 +78,10 @@ class EpisodeSettings:
                               "and debounce_s")
         if not 0.0 <= self.clock_slack_s <= 5.0:
             raise ConfigError(f"clock_slack_s={self.clock_slack_s} must be within 0-5 s")
-        if not 0.0 < self.threshold <= 1.0:
-            raise ConfigError(f"threshold={self.threshold} must be within (0, 1]")
-        for name in ("static_tau_s", "dynamic_tau_s", "max_gap_s", "max_ray_m"):
-            if not getattr(self, name) > 0:
-                raise ConfigError(f"{name}={getattr(self, name)} must be positive")
-        for name in ("dynamic_hold_s", "gaze_lookback_s"):
-            if getattr(self, name) < 0:
-                raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
+        if not self.max_ray_m > 0:
+            raise ConfigError(f"max_ray_m={self.max_ray_m} must be positive")
+        if self.gaze_lookback_s < 0:
+            raise ConfigError(f"gaze_lookback_s={self.gaze_lookback_s} must not be negative")
         bad = [f for f in self.focus if f not in FOCUS_SOURCES]
         if bad or not self.focus:
             raise ConfigError(f"focus {self.focus}: use one or both of {', '.join(FOCUS_SOURCES)}")
@@ -109,12 +92,7 @@ class EpisodeSettings:
 
     def builder(self) -> BuilderSettings:
         """Returns the settings of one episode's builder."""
-        evidence = EvidenceSettings(
-            threshold=self.threshold, static_tau_s=self.static_tau_s,
-            dynamic_tau_s=self.dynamic_tau_s, max_gap_s=self.max_gap_s,
-            dynamic_hold_s=self.dynamic_hold_s, rearm=self.rearm,
-            none_names=tuple(self.none_names))
-        return BuilderSettings(evidence, tuple(self.focus), self.min_gaze_points,
+        return BuilderSettings(self.evidence, tuple(self.focus), self.min_gaze_points,
                                self.max_ray_m, self.max_frames)
 
 

@@ -26,11 +26,12 @@ the episode measured one; other parameters are dropped.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
+from cbgo.config import described as _help
 from cbgo.errors import ConfigError
 from cbgo.wire import ACTIONS
 from cbgo.world import (
@@ -46,21 +47,30 @@ AGNOSTIC_INDEX = np.array([a in OBJECT_AGNOSTIC for a in ACTIONS])
 
 @dataclass
 class DecisionConfig:
-    """Thresholds of the decision.
+    """Thresholds of the decision; the intent service's settings inherit them (declared once).
 
-    Attributes:
-        min_confidence: below this probability the best feasible intent is not acted on.
-        accept_repairable: let intents compete whose unmet preconditions the planner repairs.
-        pour_angle_deg: the pour angle when the episode gives none.
+    The defaults are the system's: the planner repairs a closed drawer and a full gripper, so
+    such intents compete (``accept_repairable``); the paper's setting is
+    ``accept_repairable=False``.
     """
 
-    min_confidence: float = 0.5
-    accept_repairable: bool = False
-    pour_angle_deg: float = 90.0
+    min_confidence: float = field(default=0.5, metadata=_help(
+        "below this probability the best feasible intent is low_confidence and not acted on"))
+    accept_repairable: bool = field(default=True, metadata=_help(
+        "let intents compete whose unmet preconditions the planner repairs (a closed drawer, a "
+        "full gripper); --no-accept-repairable for a robot without the planner"))
+    pour_angle_deg: float = field(default=90.0, metadata=_help(
+        "pour angle when the episode gives none, degrees"))
 
     def __post_init__(self):
         if not 0.0 <= self.min_confidence <= 1.0:
             raise ConfigError(f"min_confidence={self.min_confidence} must be within [0, 1]")
+        if not 0.0 < self.pour_angle_deg <= 180.0:
+            raise ConfigError(f"pour_angle_deg={self.pour_angle_deg} must be within (0, 180]")
+
+    def decision(self) -> DecisionConfig:
+        """Returns just the decision's thresholds (of a subclass's settings, too)."""
+        return DecisionConfig(**{f.name: getattr(self, f.name) for f in fields(DecisionConfig)})
 
 
 @dataclass

@@ -46,7 +46,7 @@ from cbgo.services.intent.models import Batch, OursModel
 from cbgo.services.intent.train import evaluate
 from cbgo.world import DEFAULT_GRID, OBJECT_AGNOSTIC, Robot, Scene, SceneObject
 
-SERVICE_DECISION = DecisionConfig(min_confidence=0.5, accept_repairable=True)
+SERVICE_DECISION = DecisionConfig()  # the service's defaults are the decision's
 
 
 # ==================================================================== the demo's scenes

@@ -68,20 +68,17 @@ def served_model_path(env=None) -> Path:
 
 
 @dataclass
-class IntentSettings:
-    """Settings of the intent service (flags ``--min-confidence`` ... or env ``CBGO_...``)."""
+class IntentSettings(DecisionConfig):
+    """Settings of the intent service (flags ``--min-confidence`` ... or env ``CBGO_...``).
+
+    The decision's own (``min_confidence``, ``accept_repairable``, ``pour_angle_deg``) are
+    declared once, in `decide.DecisionConfig`, and inherited.
+    """
 
     model: str | None = field(default=None, metadata=_help(model_help(
         "the model to serve (<base>.pt + <base>.json, from `cbgo train intent`)",
         "models/intent-ours", "services/intent/models/ours")))
     watch_s: float = field(default=1.0, metadata=_help(WATCH_HELP))
-    min_confidence: float = field(default=0.5, metadata=_help(
-        "below this probability the best feasible intent is low_confidence and not acted on"))
-    accept_repairable: bool = field(default=True, metadata=_help(
-        "let intents compete whose unmet preconditions the planner repairs (a closed drawer, a "
-        "full gripper); --no-accept-repairable for a robot without the planner"))
-    pour_angle_deg: float = field(default=90.0, metadata=_help(
-        "pour angle when the episode gives none, degrees"))
     posterior_samples: int = field(default=32, metadata=_help(
         "posterior samples averaged per prediction"))
     personalise: bool = field(default=True, metadata=_help(
@@ -94,13 +91,10 @@ class IntentSettings:
         "gradient steps of a personal model's fine-tuning"))
 
     def __post_init__(self):
-        if not 0.0 <= self.min_confidence <= 1.0:
-            raise ConfigError(f"min_confidence={self.min_confidence} must be within [0, 1]")
+        super().__post_init__()
         if not 1 <= self.posterior_samples <= 1024:
             raise ConfigError(f"posterior_samples={self.posterior_samples} must be within "
                               "1-1024")
-        if not 0.0 < self.pour_angle_deg <= 180.0:
-            raise ConfigError(f"pour_angle_deg={self.pour_angle_deg} must be within (0, 180]")
         if self.update_steps < 1:
             raise ConfigError("update_steps must be at least 1")
         if self.watch_s < 0:
@@ -152,9 +146,7 @@ class Intent(Service):
             root = Path(s.personal_dir) if s.personal_dir else data_dir() / "intent"
             personal = PersonalStore(root, model, s.default_profile, s.update_steps,
                                      accept_repairable=s.accept_repairable)
-        return IntentEngine(model, DecisionConfig(s.min_confidence, s.accept_repairable,
-                                                  s.pour_angle_deg),
-                            personal, s.posterior_samples, s.default_profile)
+        return IntentEngine(model, s.decision(), personal, s.posterior_samples, s.default_profile)
 
     def _swap(self, path: Path) -> IntentEngine:
         """Loads the model at `path` and puts it in service; returns the previous engine.

@@ -136,6 +136,8 @@ def _coerce(value: Any, tp: Any, name: str) -> Any:
         return None
     origin = typing.get_origin(base)
     try:
+        if origin is tuple:  # tuple[X, ...]: read as a list, kept as a tuple
+            return tuple(_coerce(value, list[typing.get_args(base)[0]], name))
         if origin is list:
             (item,) = typing.get_args(base) or (str,)
             # "a,b" or repeated flags, or both: --sensor-position 1,0,0
@@ -199,26 +201,27 @@ class SettingRow:
     meaning: str
 
 
-def settings_rows(cls: type) -> list[SettingRow]:
+def settings_rows(cls: type, prefix: str = "") -> list[SettingRow]:
     """Returns a settings dataclass's settings as documented.
 
     The same flags, environment variables and help texts as ``--help``
-    (`add_dataclass_arguments`).
+    (`add_dataclass_arguments`); a group's settings follow under ``--group.name``.
     """
     hints = _resolve_hints(cls)
     rows = []
     for f in dataclasses.fields(cls):
-        default = f.default if f.default is not dataclasses.MISSING else (
-            f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
-        rows.append(SettingRow("--" + f.name.replace("_", "-"), env_name(f.name),
-                               _type_name(hints[f.name]), default,
-                               f.metadata.get("help", "")))
+        tp, name = hints[f.name], prefix + f.name
+        if _is_group(tp):
+            rows += settings_rows(_base_type(tp)[0], name + ".")
+            continue
+        rows.append(SettingRow("--" + name.replace("_", "-"), env_name(name.replace(".", "_")),
+                               _type_name(tp), _default(f), f.metadata.get("help", "")))
     return rows
 
 
 def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, title: str,
-                            shown_defaults: dict | None = None) -> None:
-    """Adds one ``--field-name`` flag per dataclass field.
+                            shown_defaults: dict | None = None, prefix: str = "") -> None:
+    """Adds one ``--field-name`` flag per dataclass field (``--group.field-name`` in a group).
 
     Flags default to SUPPRESS, so unset flags do not override lower layers.
 
@@ -227,26 +230,37 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, title: s
         cls: the dataclass.
         title: the heading of the flags in --help.
         shown_defaults: defaults to show instead of the dataclass's (a router's listen).
+        prefix: the group's name and a dot, for a group of settings (see `_layer`).
     """
     group = parser.add_argument_group(title)
     hints = _resolve_hints(cls)
     for f in dataclasses.fields(cls):
-        tp = hints[f.name]
+        tp, name = hints[f.name], prefix + f.name
+        if _is_group(tp):
+            add_dataclass_arguments(parser, _base_type(tp)[0], f"{title}: {f.name}.*",
+                                    prefix=name + ".")
+            continue
         base, _ = _base_type(tp)
-        flag = "--" + f.name.replace("_", "-")
+        flag = "--" + name.replace("_", "-")
         text = f.metadata.get("help", "").replace("%", "%%")  # argparse %-formats help
-        default = f.default if f.default is not dataclasses.MISSING else (
-            f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+        default = _default(f)
         default = (shown_defaults or {}).get(f.name, default)
         text = f"{text} [default: {default}]" if text else f"[default: {default}]"
-        kwargs: dict[str, Any] = {"dest": f.name, "default": argparse.SUPPRESS, "help": text}
+        kwargs: dict[str, Any] = {"dest": name, "default": argparse.SUPPRESS, "help": text}
         if base is bool:
             group.add_argument(flag, action=argparse.BooleanOptionalAction, **kwargs)
-        elif typing.get_origin(base) is list:
+        elif typing.get_origin(base) in (list, tuple):
             group.add_argument(flag, action="append", metavar="VALUE", **kwargs)
         else:
             choices = typing.get_args(base) if typing.get_origin(base) is Literal else None
-            group.add_argument(flag, metavar=f.name.upper(), choices=choices, **kwargs)
+            group.add_argument(flag, metavar=name.split(".")[-1].upper(), choices=choices,
+                               **kwargs)
+
+
+def _default(f: dataclasses.Field) -> Any:
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    return f.default_factory() if f.default_factory is not dataclasses.MISSING else None
 
 
 def add_zenoh_arguments(parser: argparse.ArgumentParser, shown_defaults: dict | None = None
@@ -275,24 +289,55 @@ def read_settings_file(path: str | None) -> dict[str, Any]:
 
 
 def _layer(cls: type, file_values: dict, env: typing.Mapping[str, str], cli: dict,
-           consumed: set[str], overrides: dict | None = None) -> Any:
+           consumed: set[str], overrides: dict | None = None, prefix: str = "") -> Any:
+    """Builds `cls` from its defaults < the file < the environment < the flags.
+
+    A field whose type is itself a dataclass is a *group* of settings (`nested_fields`): its
+    fields are ``--group.name`` flags, ``CBGO_GROUP_NAME`` variables and ``group: {name: ...}``
+    in the file, layered the same way.
+    """
     hints = _resolve_hints(cls)
     values: dict[str, Any] = dict(overrides or {})
     for f in dataclasses.fields(cls):
-        tp = hints[f.name]
+        tp, name = hints[f.name], prefix + f.name
+        if _is_group(tp):
+            values[f.name] = _layer_group(tp, f.name, name, file_values, env, cli, consumed)
+            continue
         if f.name in file_values:
-            values[f.name] = _coerce(file_values[f.name], tp, f.name)
+            values[f.name] = _coerce(file_values[f.name], tp, name)
             consumed.add(f.name)
-        if env_name(f.name) in env:
-            values[f.name] = _coerce(env[env_name(f.name)], tp, env_name(f.name))
-        if f.name in cli:
-            raw = cli[f.name]
-            flag = "--" + f.name.replace("_", "-")
+        variable = env_name(name.replace(".", "_"))
+        if variable in env:
+            values[f.name] = _coerce(env[variable], tp, variable)
+        if name in cli:
+            raw = cli[name]
+            flag = "--" + name.replace("_", "-")
             values[f.name] = raw if isinstance(raw, bool) else _coerce(raw, tp, flag)
     try:
         return cls(**values)
     except TypeError as e:
         raise ConfigError(f"bad settings for {cls.__name__}: {e}") from None
+
+
+def _is_group(tp: Any) -> bool:
+    return dataclasses.is_dataclass(_base_type(tp)[0])
+
+
+def _layer_group(group_cls: type, key: str, name: str, file_values: dict,
+                 env: typing.Mapping[str, str], cli: dict, consumed: set[str]) -> Any:
+    """Builds one group of settings (see `_layer`); its unknown file keys are errors."""
+    raw = file_values.get(key, {})
+    if not isinstance(raw, dict):
+        raise ConfigError(f"setting {name} must be a mapping of its settings, got {raw!r}")
+    sub_file = {str(k).replace("-", "_"): v for k, v in raw.items()}
+    sub_consumed: set[str] = set()
+    value = _layer(group_cls, sub_file, env, cli, sub_consumed, prefix=name + ".")
+    unknown = sorted(set(sub_file) - sub_consumed)
+    if unknown:
+        raise ConfigError(f"settings file: {name} has unknown settings {unknown}")
+    if key in file_values:
+        consumed.add(key)
+    return value
 
 
 @dataclass

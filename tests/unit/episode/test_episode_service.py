@@ -6,6 +6,7 @@ import pytest
 from cbgo import keys, wire
 from cbgo.errors import ConfigError
 from cbgo.examples import open_hand
+from cbgo.services.episode.evidence import EvidenceSettings
 from cbgo.services.episode.main import EpisodeSettings
 from cbgo.simuser.scenario import parse_scenario
 from cbgo.simuser.user import SimulatedUser
@@ -314,12 +315,16 @@ def test_the_status_tells_the_open_episode_and_the_latency(drive):
     wire.validate(status, wire.SERVICE_STATUS)
 
 
-@pytest.mark.parametrize("bad", [{"debounce_s": 0.0}, {"threshold": 1.5},
+@pytest.mark.parametrize("bad", [{"debounce_s": 0.0}, {"evidence.threshold": 1.5},
                                  {"focus": ["eyes"]}, {"check_period_s": 0.5},
-                                 {"static_tau_s": 0.0}, {"user": ""}])
+                                 {"evidence.static_tau_s": 0.0}, {"user": ""}])
 def test_invalid_settings_are_configuration_errors(bad):
+    (name, value), = bad.items()
     with pytest.raises(ConfigError):
-        EpisodeSettings(**bad)
+        if name.startswith("evidence."):  # the evidence model's settings, a group of their own
+            EpisodeSettings(evidence=EvidenceSettings(**{name.split(".")[1]: value}))
+        else:
+            EpisodeSettings(**bad)
 
 
 def test_simulated_episodes_give_one_summary_each_with_their_gestures(drive, scripted):

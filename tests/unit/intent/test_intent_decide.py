@@ -35,7 +35,8 @@ def test_the_best_feasible_pair_wins_over_a_more_probable_infeasible_one():
     scene = scene_holding_box()
     joint = joint_of(scene, {("put_into", "drawer1"): 0.4, ("put_into", "drawer2"): 0.35,
                              ("pick_up", "cup1"): 0.25})
-    d = decide(joint, scene.names, scene, DecisionConfig(min_confidence=0.3))
+    d = decide(joint, scene.names, scene, DecisionConfig(min_confidence=0.3,
+                                                        accept_repairable=False))
     assert (d.status, d.action, d.object) == ("accepted", "put_into", "drawer2")
     assert d.confidence == pytest.approx(0.35)
     assert abs(sum(d.p_action.values()) - 1) < 1e-9 and abs(sum(d.p_object.values()) - 1) < 1e-9
@@ -44,7 +45,8 @@ def test_the_best_feasible_pair_wins_over_a_more_probable_infeasible_one():
 def test_a_confident_infeasible_request_is_infeasible_with_the_unmet_precondition():
     scene = scene_holding_box()
     joint = joint_of(scene, {("put_into", "drawer1"): 0.8, ("put_into", "drawer2"): 0.2})
-    d = decide(joint, scene.names, scene, DecisionConfig(min_confidence=0.5))
+    d = decide(joint, scene.names, scene, DecisionConfig(min_confidence=0.5,
+                                                        accept_repairable=False))
     assert (d.status, d.action, d.object) == ("infeasible", None, None)
     assert "put_into(drawer1)" in d.reason and "drawer1 is closed" in d.reason
     repaired = decide(joint, scene.names, scene, DecisionConfig(0.5, accept_repairable=True))

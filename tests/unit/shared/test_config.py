@@ -441,3 +441,54 @@ def test_a_config_files_endpoints_stand_over_the_built_in_defaults(tmp_path):
     # without a file the default applies as before
     plain = zenoh_config(ZenohOptions(), "t")
     assert _json.loads(plain.get_json("connect/endpoints")) == ["tcp/127.0.0.1:7447"]
+
+
+# --- groups of settings (a dataclass-typed field: --group.name) --------------------------------
+
+
+@dataclass
+class _Gains:
+    kp: float = field(default=1.0, metadata=config.described("proportional gain"))
+    names: tuple[str, ...] = ("a", "b")
+    on: bool = False
+
+    def __post_init__(self):
+        if self.kp < 0:
+            raise ConfigError(f"kp={self.kp} must not be negative")
+
+
+@dataclass
+class _Grouped:
+    rate_hz: float = 10.0
+    gains: _Gains = field(default_factory=_Gains)
+
+
+def test_a_group_is_layered_file_then_env_then_flags_under_its_dotted_name(tmp_path):
+    path = tmp_path / "s.yaml"
+    path.write_text("gains: {kp: 2.0, names: [x]}\nrate-hz: 5\n")
+    env = {"CBGO_GAINS_ON": "true", "CBGO_GAINS_KP": "3"}
+    got = resolve(_Grouped, ["--settings", str(path), "--gains.kp", "4"], prog="t",
+                  env=env).settings
+    assert got.rate_hz == 5.0 and got.gains == _Gains(kp=4.0, names=("x",), on=True)
+    got = resolve(_Grouped, ["--gains.names", "p,q", "--no-gains.on"], prog="t",
+                  env={}).settings
+    assert got.gains.names == ("p", "q") and got.gains.on is False
+
+
+def test_a_groups_own_checks_and_unknown_names_are_errors_naming_the_group(tmp_path):
+    with pytest.raises(ConfigError, match="kp=-1.0 must not be negative"):
+        resolve(_Grouped, ["--gains.kp", "-1"], prog="t", env={})
+    path = tmp_path / "s.yaml"
+    path.write_text("gains: {kd: 1}\n")
+    with pytest.raises(ConfigError, match=r"gains has unknown settings \['kd'\]"):
+        resolve(_Grouped, ["--settings", str(path)], prog="t", env={})
+    path.write_text("gains: 3\n")
+    with pytest.raises(ConfigError, match="gains must be a mapping"):
+        resolve(_Grouped, ["--settings", str(path)], prog="t", env={})
+
+
+def test_the_documented_rows_of_a_group_are_its_dotted_flags_and_variables():
+    rows = {r.flag: r for r in config.settings_rows(_Grouped)}
+    assert set(rows) == {"--rate-hz", "--gains.kp", "--gains.names", "--gains.on"}
+    assert rows["--gains.kp"].env == "CBGO_GAINS_KP"
+    assert rows["--gains.kp"].meaning == "proportional gain"
