@@ -53,8 +53,9 @@ from cbgo.services.dynamic_gesture.dtw import (
     fastdtw_distances,
 )
 from cbgo.services.dynamic_gesture.promp import ProMP
+from cbgo.wire import NO_GESTURE
 
-NONE = "none"
+NONE = NO_GESTURE  # the no-gesture class of the wire vocabulary: preparation, return, twitch
 SCALE_FLOOR = 0.02  # per-step shape distance, in units of the stroke's extent
 LOO_MAX = 30
 LOGLIK_FLOOR = -60.0

@@ -138,7 +138,7 @@ class EpisodeBuilder:
 
     def _labelled(self) -> list[HandSample]:
         return [s for seq, (_, samples) in self.frames.items() for s in samples
-                if self.evidence.is_gesture(self.labels.get((seq, s.side), "none"))]
+                if self.evidence.is_gesture(self.labels.get((seq, s.side), wire.NO_GESTURE))]
 
     def _window_for(self, gestures: tuple[str, ...]) -> tuple[Window, str] | None:
         """The stroke window of a gesture of `gestures`: the triggered one's, or any's.

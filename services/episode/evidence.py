@@ -55,9 +55,9 @@ from dataclasses import dataclass, field
 
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError
-from cbgo.wire import DYNAMIC_GESTURES, STATIC_GESTURES
+from cbgo.wire import DYNAMIC_GESTURES, NO_GESTURE_NAMES, STATIC_GESTURES
 
-NONE_NAMES = ("none", "no_gesture")
+NONE_NAMES = NO_GESTURE_NAMES
 
 
 @dataclass

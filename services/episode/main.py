@@ -157,11 +157,11 @@ class Episode(Service):
         ep = EpisodeBuilder("warm-up", 1.0, 1, self.builder_settings, [[0.5, 0.0, 0.0]] * 3)
         for seq, label in ((1, "point"), (2, "pinch")):
             ep.add_frame({**frame, "seq": seq, "ts": float(seq)}, to_base)
-            names = [label, "none"]
+            names = [label, wire.NO_GESTURE]
             ep.add_static({**example("gestures/static"), "seq": seq, "ts": float(seq),
                            "names": names, "probs": [1.0, 0.0]})
         for name in ("rotate", "swipe_down"):
-            ep.add_dynamic({**example("gestures/dynamic"), "names": [name, "none"],
+            ep.add_dynamic({**example("gestures/dynamic"), "names": [name, wire.NO_GESTURE],
                             "probs": [1.0, 0.0], "window": [1.0, 2.0]})
         wire.encode(wire.validate(ep.summary(2.0, "warm-up", 3.0), wire.EPISODE_SUMMARY))
 

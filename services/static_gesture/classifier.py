@@ -47,11 +47,10 @@ from cbgo.errors import ConfigError
 from cbgo.hands import features as F
 from cbgo.model_store import ModelStore
 from cbgo.services.static_gesture import invariant
+from cbgo.wire import NO_GESTURE
 
 KIND = "static-gesture"
-NONE = "none"
-"""The no-gesture class: relaxed and transition poses (contract: "probs include a no-gesture
-class where the model has one")."""
+NONE = NO_GESTURE  # the no-gesture class of the wire vocabulary: relaxed and transition poses
 MODEL_BASENAME = "static-gesture"
 DEFAULT_SAMPLES = 32
 

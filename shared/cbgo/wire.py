@@ -44,6 +44,11 @@ SCHEMA_VERSION = 1
 DEFAULT_MAX_BYTES = 1 << 20  # 1 MiB: a hand frame is ~4 KB, a scene a few KB
 MAX_BYTES_RENDER = 32 << 20  # a PNG render reply may be several MB
 
+# The no-gesture class: a classifier's "nothing I know" (relaxed and transition poses, a
+# preparation or return move). The contract: "probs include a no-gesture class where the model
+# has one"; it never triggers and is not in g. NO_GESTURE_NAMES also accepts an older spelling.
+NO_GESTURE = "none"
+NO_GESTURE_NAMES = (NO_GESTURE, "no_gesture")
 STATIC_GESTURES = ("grab", "pinch", "point", "two", "three", "four", "five", "thumbsup")
 DYNAMIC_GESTURES = ("swipe_up", "swipe_down", "swipe_left", "swipe_right", "rotate")
 PAPER_GESTURES = (
