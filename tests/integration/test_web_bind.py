@@ -26,11 +26,12 @@ def test_web_on_a_port_in_use_logs_why_and_exits_2(tmp_path):
 def test_cbgo_web_serves_the_page_live_and_stops_on_sigterm(tmp_path):
     with Stack(tmp_path) as stack:
         stack.start_router()
-        web = stack.spawn("web", [sys.executable, "-m", "cbgo.cli.main", "web", "--http-port",
-                                  "0", "--connect", stack.endpoint])
+        # No --http-port: the stack's CBGO_HTTP_PORT=0 must apply (env < flags, not defaults).
+        web = stack.spawn("web", [sys.executable, "-m", "cbgo.cli.main", "web", "--connect",
+                                  stack.endpoint])
         stack.wait_alive(["router", "web"])
         url = stack.status("web")["url"]
-        assert url in web.wait_for_line("serving the page at")
+        assert url in web.wait_for_line("serving the page at") and ":8080/" not in url
         with urllib.request.urlopen(url, timeout=5) as page:
             assert 'data-testid="scene-3d"' in page.read().decode()
         with urllib.request.urlopen(url + "static/vendor/three/LICENSE", timeout=5) as licence:

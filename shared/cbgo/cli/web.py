@@ -24,63 +24,75 @@ from cbgo.cli.common import fail
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Adds web's flags."""
-    from cbgo.client import add_network_arguments
+    """Adds web's flags: --replay, the service's settings and the Zenoh flags."""
+    from cbgo.config import add_dataclass_arguments, add_zenoh_arguments
     from cbgo.services.web.main import WebSettings
 
-    defaults = WebSettings()
     parser.add_argument("--replay", metavar="FILE.mcap", default=None,
                         help="show a recording instead of the live network")
-    parser.add_argument("--http-host", default=defaults.http_host, metavar="HOST",
-                        help=f"address to serve the page on [{defaults.http_host}]")
-    parser.add_argument("--http-port", type=int, default=defaults.http_port, metavar="PORT",
-                        help=f"port of the page (0: any free port) [{defaults.http_port}]")
-    parser.add_argument("--rate-hz", type=float, default=defaults.rate_hz, metavar="HZ",
-                        help="most views per second of each high-rate stream "
-                             f"[{defaults.rate_hz:g}]")
-    add_network_arguments(parser)
+    add_dataclass_arguments(parser, WebSettings, "page (also CBGO_HTTP_HOST, CBGO_HTTP_PORT, "
+                                                 "...)")
+    add_zenoh_arguments(parser)
+
+
+def _forwarded(args: argparse.Namespace) -> list[str]:
+    """Returns the flags given on the command line, as the service's own argv.
+
+    Flags not given are left out, so the environment and the settings file still apply
+    (defaults < file < env < flags, resolved once by `cbgo.config.resolve`).
+    """
+    argv: list[str] = []
+    for name, value in vars(args).items():
+        if name in ("verb", "run", "replay"):
+            continue
+        flag = "--" + name.replace("_", "-")
+        if isinstance(value, bool):
+            argv.append(flag if value else "--no-" + flag[2:])
+        elif isinstance(value, list):
+            argv += [part for item in value for part in (flag, str(item))]
+        elif value is not None:
+            argv += [flag, str(value)]
+    return argv
 
 
 def run(args: argparse.Namespace) -> int:
     """Serves the page until Ctrl-C/SIGTERM; returns the exit code."""
-    if args.replay:
-        return serve_replay(args)
-    from cbgo.runtime import run as run_service
     from cbgo.services.web.main import Web
 
-    argv = ["--http-host", args.http_host, "--http-port", str(args.http_port),
-            "--rate-hz", str(args.rate_hz)]
-    for name in ("connect", "listen"):
-        for endpoint in getattr(args, name, None) or []:
-            argv += [f"--{name}", endpoint]
-    for name in ("mode", "prefix", "config"):
-        if getattr(args, name, None):
-            argv += [f"--{name}", str(getattr(args, name))]
-    return run_service(Web, argv)
+    if args.replay:
+        return serve_replay(args.replay, _forwarded(args))
+    from cbgo.runtime import run as run_service
+
+    return run_service(Web, _forwarded(args))
 
 
-def serve_replay(args: argparse.Namespace) -> int:
-    """Loads the recording and serves it until Ctrl-C/SIGTERM."""
+def serve_replay(path: str, argv: list[str]) -> int:
+    """Loads the recording and serves it until Ctrl-C/SIGTERM (no network)."""
     from cbgo import __version__, wire
+    from cbgo.config import resolve
     from cbgo.errors import ConfigError, RecordingError
     from cbgo.services.web import replay
+    from cbgo.services.web.main import WebSettings
     from cbgo.services.web.server import HttpServer
     from cbgo.world.workspace import workspace_info
 
     try:
-        shown = replay.load(args.replay, args.rate_hz, getattr(args, "prefix", None) or "cbgo")
-    except RecordingError as e:
+        resolved = resolve(WebSettings, argv, prog="cbgo web --replay")
+        settings = resolved.settings
+        shown = replay.load(path, settings.rate_hz, resolved.zenoh.prefix)
+    except (ConfigError, RecordingError) as e:
         fail(str(e), 2)
     skipped = ", ".join(f"{n} {why}" for why, n in shown.skipped.items()) or "none"
     info = {"mode": "replay", "file": shown.file, "prefix": shown.prefix,
-            "version": __version__, "rate_hz": args.rate_hz, "actions": list(wire.ACTIONS),
+            "version": __version__, "rate_hz": settings.rate_hz, "actions": list(wire.ACTIONS),
             "source": "cbgo.world.workspace (default grid)", "workspace": workspace_info()}
-    def load_upload(path: str) -> tuple[list, dict]:
-        opened = replay.load(path, args.rate_hz, shown.prefix)
+
+    def load_upload(upload: str) -> tuple[list, dict]:
+        opened = replay.load(upload, settings.rate_hz, shown.prefix)
         return opened.items, opened.skipped
 
-    server = HttpServer(args.http_host, args.http_port, lambda: info, _refuse, shown.items,
-                        load_upload)
+    server = HttpServer(settings.http_host, settings.http_port, lambda: info, _refuse,
+                        shown.items, load_upload)
     try:
         url = server.start()
     except ConfigError as e:
