@@ -78,6 +78,7 @@ class Web(Service):
         self.server: HttpServer | None = None
         self.views = Views(settings.rate_hz, time.monotonic)
         self.users: OrderedDict[str, str] = OrderedDict()
+        self._users_lock = threading.Lock()  # written on the event loop, read on the server's
         self.requests = {"stop": 0, "feedback": 0, "rejected": 0}
         self.workspace = {"source": "cbgo.world.workspace (default grid)",
                           "workspace": workspace_info()}
@@ -133,9 +134,10 @@ class Web(Service):
             self.server.send(topic, to_json(topic, view, time.time()))
 
     def _remember_user(self, episode: str, user: str) -> None:
-        self.users[episode] = user
-        while len(self.users) > MAX_EPISODES:
-            self.users.popitem(last=False)
+        with self._users_lock:
+            self.users[episode] = user
+            while len(self.users) > MAX_EPISODES:
+                self.users.popitem(last=False)
 
     def info(self) -> dict:
         """Returns the ``/api/info`` answer."""
@@ -160,7 +162,9 @@ class Web(Service):
         """Checks and publishes one request from a page; returns the answer (JSON text)."""
         assert self.ctx is not None
         try:
-            request = inbound.parse(data, dict(self.users))
+            with self._users_lock:
+                users = dict(self.users)
+            request = inbound.parse(data, users)
         except RejectedMessage as e:
             return self._reject(e, inbound.request_id(data))
         topic = keys.ROBOT_STOP if request.kind == "stop" else keys.INTENT_FEEDBACK
