@@ -19,7 +19,7 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
-from cbgo import wire
+from cbgo import keys
 from cbgo.world import DEFAULT_GRID, Grid, InfeasibleAction, Scene, apply, failures
 
 READY_JOINTS = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)  # the Panda's ready posture, rad
@@ -64,8 +64,8 @@ class SymbolicRobot:
 
     def act_reply(self, ok: bool, error: str | None, duration_s: float = 0.0) -> dict:
         """Returns a ``robot/act`` reply carrying the scene as it is now."""
-        return {"v": wire.SCHEMA_VERSION, "ok": ok, "error": error,
-                "duration_s": round(max(duration_s, 0.0), 4), "scene": self.message()}
+        return keys.ROBOT_ACT.reply(ok, error,
+                duration_s=round(max(duration_s, 0.0), 4), scene=self.message())
 
     def message(self) -> dict:
         """Returns the world as the next ``cbgo/scene/state`` message."""
@@ -75,10 +75,10 @@ class SymbolicRobot:
     def state_message(self, action: str | None = None) -> dict:
         """Returns the next ``cbgo/robot/state`` message; `action` is the primitive under way."""
         self.state_seq += 1
-        return {"v": wire.SCHEMA_VERSION, "ts": time.time(), "seq": self.state_seq,
-                "joints": list(READY_JOINTS), "gripper_width": self.gripper_width(),
-                "tcp": [float(v) for v in self.scene.robot.tcp], "moving": action is not None,
-                "action": action, "kinematics": False}
+        return keys.ROBOT_STATE.message(ts=time.time(), seq=self.state_seq,
+                joints=list(READY_JOINTS), gripper_width=self.gripper_width(),
+                tcp=[float(v) for v in self.scene.robot.tcp], moving=action is not None,
+                action=action, kinematics=False)
 
     def gripper_width(self) -> float:
         """Returns the finger gap: fully open, closed on the held object's size, or shut."""

@@ -153,10 +153,10 @@ class DynamicGesture(Service):
     def message(self, window: Window, probs: np.ndarray) -> dict:
         """Returns the ``cbgo/gestures/dynamic`` message of a classified window."""
         self.windows += 1
-        msg = {"v": wire.SCHEMA_VERSION, "ts": time.time(), "seq": self.seq,
-               "hand_id": window.hand_id, "side": window.side,
-               "names": list(self.classifier.names), "probs": [float(p) for p in probs],
-               "window": [window.t_start, window.t_end], "model": MODEL}
+        msg = keys.GESTURES_DYNAMIC.message(ts=time.time(), seq=self.seq,
+               hand_id=window.hand_id, side=window.side,
+               names=list(self.classifier.names), probs=[float(p) for p in probs],
+               window=[window.t_start, window.t_end], model=MODEL)
         self.seq += 1
         return msg
 

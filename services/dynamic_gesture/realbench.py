@@ -121,9 +121,9 @@ class _Player:
         for i, hand in enumerate([*hands, *([None] * int(LEAVE_S * shrec.RATE_HZ))]):
             due = t_first + i / shrec.RATE_HZ
             time.sleep(max(0.0, due - time.time()))
-            self.pub.put(wire.encode({"v": wire.SCHEMA_VERSION, "ts": time.time(),
-                                      "seq": self.seq, "source": "replay",
-                                      "device": "shrec17", "hands": [hand] if hand else []}))
+            self.pub.put(wire.encode(keys.HANDS_FRAME.message(ts=time.time(),
+                                      seq=self.seq, source="replay",
+                                      device="shrec17", hands=[hand] if hand else [])))
             self.seq += 1
         return t_first, t_first + len(hands) / shrec.RATE_HZ
 

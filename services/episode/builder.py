@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cbgo import wire
+from cbgo import keys, wire
 from cbgo.services.episode import focus as focus_mod
 from cbgo.services.episode.evidence import Evidence, EvidenceSettings, Trigger, gesture_vector
 from cbgo.services.episode.params import (
@@ -201,10 +201,8 @@ class EpisodeBuilder:
                       if self.evidence.is_gesture(n)]
         names, probs = gesture_vector([t.snapshot for t in triggers], vocabulary)
         focus, source = self.focus()
-        return {
-            "v": wire.SCHEMA_VERSION, "ts": now, "episode": self.episode, "user": user,
-            "started": self.started, "ended": max(ended, self.started),
-            "gestures": {"names": names, "probs": probs},
-            "triggers": [{"gesture": t.gesture, "ts": t.ts, "prob": t.prob} for t in triggers],
-            "params": self.params(), "focus": focus, "focus_source": source,
-        }
+        return keys.EPISODE_SUMMARY.message(ts=now, episode=self.episode, user=user,
+            started=self.started, ended=max(ended, self.started),
+            gestures={"names": names, "probs": probs},
+            triggers=[{"gesture": t.gesture, "ts": t.ts, "prob": t.prob} for t in triggers],
+            params=self.params(), focus=focus, focus_source=source)

@@ -217,8 +217,8 @@ class Episode(Service):
         gaze = [p for ts, p in self.recent_gaze if ts >= horizon]
         self.current = EpisodeBuilder(episode, boundary.ts, frame["seq"], self.builder_settings,
                                       gaze)
-        return [(keys.EPISODE_EVENT, {"v": wire.SCHEMA_VERSION, "ts": boundary.ts,
-                                      "episode": episode, "kind": "start"})]
+        return [(keys.EPISODE_EVENT, keys.EPISODE_EVENT.message(ts=boundary.ts,
+                                      episode=episode, kind="start"))]
 
     def _end(self, boundary: Boundary) -> list:
         ep = self.current
@@ -234,13 +234,13 @@ class Episode(Service):
                           summary["ended"] - summary["started"],
                           [t["gesture"] for t in summary["triggers"]] or "none",
                           summary["focus_source"], summary["params"] or "none")
-        end = {"v": wire.SCHEMA_VERSION, "ts": now, "episode": ep.episode, "kind": "end"}
+        end = keys.EPISODE_EVENT.message(ts=now, episode=ep.episode, kind="end")
         return [(keys.EPISODE_EVENT, end), (keys.EPISODE_SUMMARY, summary)]
 
     def _events(self, triggers: list[Trigger]) -> list:
-        return [(keys.EPISODE_EVENT, {
-            "v": wire.SCHEMA_VERSION, "ts": t.ts, "episode": self.current.episode,
-            "kind": "trigger", "gesture": t.gesture, "prob": t.prob}) for t in triggers]
+        return [(keys.EPISODE_EVENT, keys.EPISODE_EVENT.message(
+            ts=t.ts, episode=self.current.episode, kind="trigger", gesture=t.gesture,
+            prob=t.prob)) for t in triggers]
 
     def _transform(self, values: list[float] | None) -> np.ndarray | None:
         """Returns the frame's to_base as a matrix (parsed once per distinct value)."""

@@ -209,10 +209,9 @@ class LeapBridge(Service):
 
     def _publish(self, frame: SourceFrame) -> None:
         now = time.time()
-        self.ctx.publish(keys.HANDS_FRAME, {
-            "v": wire.SCHEMA_VERSION, "ts": now, "seq": self.seq, "source": self.stream.kind,
-            "device": self.stream.device, "hands": frame.hands,
-            "to_base": self.to_base.reshape(-1).tolist()})
+        self.ctx.publish(keys.HANDS_FRAME, keys.HANDS_FRAME.message(
+            ts=now, seq=self.seq, source=self.stream.kind, device=self.stream.device,
+            hands=frame.hands, to_base=self.to_base.reshape(-1).tolist()))
         self.seq += 1
         self._publish_user(frame.user or self.settings.user, now)
         if frame.gaze is not None:
@@ -221,7 +220,7 @@ class LeapBridge(Service):
     def _publish_user(self, user: str, now: float) -> None:
         last_user, last_time = self._last_user
         if user != last_user or now - last_time >= USER_REPEAT_S:
-            self.ctx.publish(keys.USER, {"v": wire.SCHEMA_VERSION, "ts": now, "user": user})
+            self.ctx.publish(keys.USER, keys.USER.message(ts=now, user=user))
             self._last_user = (user, now)
 
     def _publish_gaze(self, target, now: float) -> None:
@@ -233,9 +232,9 @@ class LeapBridge(Service):
                                                        "latest scene; no gaze published")
             return
         noise = self._gaze_rng.normal(0.0, self.stream.gaze_noise_m(), 3)
-        self.ctx.publish(keys.GAZE, {"v": wire.SCHEMA_VERSION, "ts": now,
-                                     "point": (np.asarray(point) + noise).tolist(),
-                                     "source": "simulated"})
+        self.ctx.publish(keys.GAZE, keys.GAZE.message(ts=now,
+                                     point=(np.asarray(point) + noise).tolist(),
+                                     source="simulated"))
         self._last_gaze = now
 
     def status_extra(self) -> dict:

@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from cbgo import wire
+from cbgo import keys
 from cbgo.services.mujoco_sim.build import DrawerDims, Item
 from cbgo.services.mujoco_sim.engine import Sim
 
@@ -172,16 +172,16 @@ def observe_robot(sim: Sim) -> dict:
 
 def scene_state(sim: Sim, seq: int) -> dict:
     """Returns a full `cbgo/scene/state` message."""
-    return {"v": wire.SCHEMA_VERSION, "ts": time.time(), "seq": seq,
-            "objects": observe_objects(sim), "robot": observe_robot(sim)}
+    return keys.SCENE_STATE.message(ts=time.time(), seq=seq,
+            objects=observe_objects(sim), robot=observe_robot(sim))
 
 
 def robot_state(sim: Sim, seq: int) -> dict:
     """Returns a `cbgo/robot/state` message."""
     tcp, _ = sim.tcp()
-    return {"v": wire.SCHEMA_VERSION, "ts": time.time(), "seq": seq,
-            "joints": _vec(sim.q), "gripper_width": round(float(max(sim.fingers.sum(), 0.0)), 5),
-            "tcp": _vec(tcp), "moving": bool(sim.moving), "action": sim.action}
+    return keys.ROBOT_STATE.message(ts=time.time(), seq=seq,
+            joints=_vec(sim.q), gripper_width=round(float(max(sim.fingers.sum(), 0.0)), 5),
+            tcp=_vec(tcp), moving=bool(sim.moving), action=sim.action)
 
 
 def _vec(values) -> list[float]:

@@ -26,7 +26,7 @@ from collections import deque
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 
-from cbgo import keys, wire
+from cbgo import keys
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.runtime import Context, Service, main_for
@@ -87,7 +87,7 @@ class RobotClient:
     def send(self, action: str, obj: str | None, params: dict) -> Future:
         """Queues one primitive; the future resolves to the reply (``ok: false`` on errors)."""
         future: Future = Future()
-        query = {"v": wire.SCHEMA_VERSION, "action": action, "object": obj, "params": params}
+        query = keys.ROBOT_ACT.message(action=action, object=obj, params=params)
         with self._lock:
             if self._halted:
                 future.set_result(_failed("stopped"))
@@ -148,8 +148,8 @@ class RobotClient:
 
 
 def _failed(error: str) -> dict:
-    return {"v": wire.SCHEMA_VERSION, "ok": False, "error": error, "duration_s": 0.0,
-            "scene": None}
+    return keys.ROBOT_ACT.reply(False, error, duration_s=0.0,
+            scene=None)
 
 
 class Planner(Service):
@@ -334,8 +334,8 @@ class Planner(Service):
 
 def _unstarted(intent: dict, error: str) -> dict:
     """Returns the failure status of an intent that never ran."""
-    return {"v": wire.SCHEMA_VERSION, "ts": time.time(), "intent": intent, "sequence": [],
-            "state": "failure", "tree": "", "error": error}
+    return keys.PLAN_STATUS.message(ts=time.time(), intent=intent, sequence=[],
+            state="failure", tree="", error=error)
 
 
 main = main_for(Planner)

@@ -18,7 +18,7 @@ from typing import Any
 
 from py_trees.common import Status
 
-from cbgo import wire
+from cbgo import keys
 from cbgo.services.planner.repair import PlanMemory
 from cbgo.services.planner.scenes import SceneSource
 from cbgo.services.planner.sequence import predict
@@ -80,9 +80,9 @@ class Plan:
 
     def status(self, ts: float | None = None) -> dict[str, Any]:
         """Returns the ``cbgo/plan/status`` message of the plan as it is now."""
-        return {"v": wire.SCHEMA_VERSION, "ts": time.time() if ts is None else ts,
-                "intent": self.intent, "sequence": self.sequence(), "state": self.state,
-                "tree": self.tree.snapshot(), "error": self.error}
+        return keys.PLAN_STATUS.message(ts=time.time() if ts is None else ts,
+                intent=self.intent, sequence=self.sequence(), state=self.state,
+                tree=self.tree.snapshot(), error=self.error)
 
     def sequence(self) -> list[dict]:
         """Returns the steps sent so far, then the steps still predicted (pending)."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 from py_trees.common import Status
 
-from cbgo import wire
+from cbgo import keys
 from cbgo.services.planner.repair import PlanMemory
 from cbgo.services.planner.scenes import SceneSource
 from cbgo.services.planner.tree import create_tree
@@ -46,8 +46,8 @@ class SymbolicRobot:
             ok, error = False, f"refused: {'; '.join(f.message for f in e.failures)}"
         self._seq += 1
         future: Future = Future()
-        future.set_result({"v": wire.SCHEMA_VERSION, "ok": ok, "error": error, "duration_s": 0.0,
-                           "scene": self.scene.to_message(self._seq, time.time())})
+        future.set_result(keys.ROBOT_ACT.reply(ok, error, duration_s=0.0,
+                           scene=self.scene.to_message(self._seq, time.time())))
         return future
 
     def cancel(self, future: Future) -> None:

@@ -151,7 +151,7 @@ def _capture(args: argparse.Namespace, capture: Capture) -> str | None:
         while not capture.done and time.monotonic() < deadline:
             try:
                 topic, payload = inbox.get(timeout=0.2)
-                msg = wire.decode_checked(payload, wire.SCHEMAS[topic.suffix])
+                msg = wire.decode_checked(payload, topic.schema)
             except queue.Empty:
                 continue
             except RejectedMessage as e:

@@ -108,10 +108,9 @@ class StaticGesture(Service):
                                      "not finite; hand skipped")
         self.hands += len(hands)
         clf = self.classifier
-        return [(keys.GESTURES_STATIC, {
-            "v": wire.SCHEMA_VERSION, "ts": msg["ts"], "seq": msg["seq"],
-            "hand_id": hand["id"], "side": hand["side"], "names": clf.names,
-            "probs": row.tolist(), "model": clf.model_id})
+        return [(keys.GESTURES_STATIC, keys.GESTURES_STATIC.message(ts=msg["ts"], seq=msg["seq"],
+            hand_id=hand["id"], side=hand["side"], names=clf.names,
+            probs=row.tolist(), model=clf.model_id))
             for hand, row, good in zip(hands, probs, ok, strict=True) if good]
 
     def on_reload(self, query: dict) -> dict:

@@ -7,7 +7,7 @@ sessions and send their queries here, so that a reply is checked the same way ev
   (`cbgo.config.resolve_zenoh`, `zenoh_config`), giving up after a connect timeout with a
   `ConnectError` that says what to do;
 - `query`: the first successful reply, decoded within the key's size limit
-  (`wire.max_bytes_for`) and validated against the key's reply schema (`wire.REPLY_SCHEMAS`;
+  (`keys.Topic.max_bytes`) and validated against the key's reply schema (`keys.Topic.reply_schema`;
   status replies against `wire.SERVICE_STATUS`), or a `QueryError` with the error reply's text,
   the malformed reply's fault, or "no reply ... within X s"; `query_all` for wildcard queries;
 - `status`, `alive`: which services answer and are alive;
@@ -32,7 +32,7 @@ from typing import Any
 from cbgo import wire
 from cbgo.config import ZenohOptions, add_zenoh_arguments, resolve_zenoh, zenoh_config
 from cbgo.errors import CbgoError, ConfigError, QueryError, RejectedMessage
-from cbgo.keys import Keys
+from cbgo.keys import TOPICS, Keys
 
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
 NO_REPLY_HINT = "is its service up?"
@@ -160,22 +160,19 @@ def replies(session, key: str, payload: bytes | None = None, timeout_s: float = 
     return out
 
 
-def _suffix(key: str) -> str | None:
-    """Returns the contract suffix a key ends with (any prefix), or None."""
-    if "/@ctl/" in key and key.endswith("/status"):
-        return "@ctl/status"
-    return next((s for s in wire.REPLY_SCHEMAS if key.endswith("/" + s)), None)
-
-
 def reply_contract(key: str, default_max_bytes: int = wire.DEFAULT_MAX_BYTES
                    ) -> tuple[wire.Spec | None, int]:
-    """Returns (reply schema, size limit) of a query key (None: the key has no reply schema)."""
-    suffix = _suffix(key)
-    if suffix == "@ctl/status":
+    """Returns (reply schema, size limit) of a query key (None: the key has no reply schema).
+
+    The key may have any prefix: the query topic is the one it ends with.
+    """
+    if "/@ctl/" in key and key.endswith("/status"):
         return wire.SERVICE_STATUS, default_max_bytes
-    if suffix is None:
+    topic = next((t for t in TOPICS.values()
+                  if t.reply_schema is not None and key.endswith("/" + t.suffix)), None)
+    if topic is None:
         return None, default_max_bytes
-    return wire.REPLY_SCHEMAS[suffix], wire.max_bytes_for(suffix, default_max_bytes)
+    return topic.reply_schema, topic.max_bytes(default_max_bytes)
 
 
 def read_reply(payload: bytes, key: str, spec: wire.Spec | None, max_bytes: int) -> dict:

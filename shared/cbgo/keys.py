@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import Any
 
+from cbgo import wire
 from cbgo.errors import ConfigError
 
 DEFAULT_PREFIX = "cbgo"
@@ -35,6 +37,41 @@ class Topic:
     reliable: bool = True
     express: bool = False
     query: bool = False
+
+    # The topic's record: its schemas and size limit (defined in `cbgo.wire`, joined here only)
+    # and constructors of its messages, so that nothing else joins tables by suffix.
+
+    @property
+    def schema(self) -> wire.Spec | None:
+        """The schema of a message on this key (None: any payload counts, e.g. robot/stop)."""
+        return wire.SCHEMAS.get(self.suffix)
+
+    @property
+    def any_payload(self) -> bool:
+        """Whether any payload counts as a message (``robot/stop``: anything stops)."""
+        return self.suffix in wire.ANY_PAYLOAD
+
+    @property
+    def query_schema(self) -> wire.Spec | None:
+        """The schema of a query's payload (None: not a query key)."""
+        return wire.QUERY_SCHEMAS.get(self.suffix)
+
+    @property
+    def reply_schema(self) -> wire.Spec | None:
+        """The schema of a query's reply (None: not a query key)."""
+        return wire.REPLY_SCHEMAS.get(self.suffix)
+
+    def max_bytes(self, default: int = wire.DEFAULT_MAX_BYTES) -> int:
+        """The payload size limit on this key (larger for render replies)."""
+        return wire.max_bytes_for(self.suffix, default)
+
+    def message(self, **fields: Any) -> dict:
+        """Returns a message (or query payload) of the current schema version."""
+        return {"v": wire.SCHEMA_VERSION, **fields}
+
+    def reply(self, ok: bool = True, error: str | None = None, **fields: Any) -> dict:
+        """Returns a query's reply: ``ok``, ``error`` (required when not ok), the fields."""
+        return {"v": wire.SCHEMA_VERSION, "ok": ok, "error": error, **fields}
 
 
 HANDS_FRAME = Topic("hands/frame", reliable=False, express=True)

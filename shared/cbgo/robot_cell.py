@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cbgo import keys, wire
+from cbgo import keys
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.runtime import Service
@@ -195,9 +195,9 @@ class RobotCell(Service):
         wall_s = time.perf_counter() - t0
         self.ctx.log.info("%s(%s): %s in %.2f s, %.2f s wall", action, obj or "",
                           error or "ok", outcome.duration_s, wall_s)
-        return {"v": wire.SCHEMA_VERSION, "ok": outcome.ok, "error": error,
-                "duration_s": round(max(outcome.duration_s, 0.0), 4),
-                "wall_s": round(wall_s, 4), "scene": scene}
+        return keys.ROBOT_ACT.reply(outcome.ok, error,
+                duration_s=round(max(outcome.duration_s, 0.0), 4),
+                wall_s=round(wall_s, 4), scene=scene)
 
     def _checked(self, error: str | None, scene: dict) -> str | None:
         """Returns a failure's error, naming every contradiction in the scene after it.
@@ -231,21 +231,21 @@ class RobotCell(Service):
         try:
             problems = self.reload(self.reset_target(query))
         except SceneError as e:
-            return {"v": wire.SCHEMA_VERSION, "ok": False, "error": str(e), "scene": None}
+            return keys.SIM_RESET.reply(False, str(e), scene=None)
         scene = self.scene_message()
         self.ctx.publish(keys.SCENE_STATE, scene)
         self.ctx.publish(keys.ROBOT_STATE, self.robot_message())
         error = ("after settling: " + "; ".join(problems)) if problems else None
-        return {"v": wire.SCHEMA_VERSION, "ok": not problems, "error": error, "scene": scene}
+        return keys.SIM_RESET.reply(not problems, error, scene=scene)
 
     def on_info(self, _query: dict) -> dict:
         """sim/info: the workspace, as every robot of cbgo answers it."""
-        return {"v": wire.SCHEMA_VERSION, "ok": True, "error": None, "robot": self.name,
-                "workspace": workspace_info()}
+        return keys.SIM_INFO.reply(True, None, robot=self.name,
+                workspace=workspace_info())
 
     def on_render(self, query: dict) -> dict:
         """sim/render: a PNG of the world (`render`), or an error reply saying why not."""
-        return {"v": wire.SCHEMA_VERSION, "ok": True, "error": None, "png": self.render(query)}
+        return keys.SIM_RENDER.reply(True, None, png=self.render(query))
 
 
 def describe_outcome(reply: dict[str, Any]) -> ActOutcome:

@@ -189,8 +189,7 @@ class Context:
                 that must not wait behind a long handler, such as robot/stop).
         """
         key = self.keys.of(topic)
-        spec = wire.SCHEMAS.get(topic.suffix)
-        lenient = topic.suffix in wire.ANY_PAYLOAD
+        spec, lenient = topic.schema, topic.any_payload
         droppable = not topic.reliable
 
         def on_sample(sample_key: str, payload: bytes) -> None:
@@ -208,8 +207,7 @@ class Context:
         `QueryError` (or sending a malformed query) produces an error reply, never silence.
         """
         key = self.keys.of(topic)
-        self._serve(key, wire.QUERY_SCHEMAS.get(topic.suffix), wire.REPLY_SCHEMAS.get(
-            topic.suffix), handler, immediate=False)
+        self._serve(key, topic.query_schema, topic.reply_schema, handler, immediate=False)
         self.queryables.append(key)
 
     def control(self, verb: str, handler: QueryHandler, *, immediate: bool = False) -> None:
@@ -243,7 +241,7 @@ class Context:
         """
         key = self.keys.of(topic)
         try:
-            wire.validate(message, wire.SCHEMAS.get(topic.suffix), key)
+            wire.validate(message, topic.schema, key)
             payload = wire.encode(message)
         except (RejectedMessage, TypeError) as e:
             self.counters.error("publish", f"refused to publish an invalid message: {e}")
@@ -260,10 +258,10 @@ class Context:
             QueryError: the answer was an error, was malformed, or no one answered in time.
         """
         key = self.keys.of(topic)
-        wire.validate(message, wire.QUERY_SCHEMAS.get(topic.suffix), key)
+        wire.validate(message, topic.query_schema, key)
         replies = self.transport.get(key, wire.encode(message), timeout_s)
-        return pick_reply(replies, key, wire.REPLY_SCHEMAS.get(topic.suffix),
-                          wire.max_bytes_for(topic.suffix, self.max_payload_bytes), timeout_s)
+        return pick_reply(replies, key, topic.reply_schema,
+                          topic.max_bytes(self.max_payload_bytes), timeout_s)
 
     def wait_for_subscribers(self, topic: Topic, timeout_s: float = 5.0) -> bool:
         """Waits until someone subscribes to topic (a put before that would be lost)."""

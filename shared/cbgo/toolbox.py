@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from cbgo import wire
+from cbgo import keys, wire
 from cbgo.errors import RecordingError, RejectedMessage
 
 TOOLBOX_DEVICE = "toolbox-json"
@@ -304,9 +304,9 @@ def load_toolbox_json(path: str | Path) -> list[tuple[float, dict]]:
     out = []
     for i, ((t, hands), frame) in enumerate(zip(frames, raw, strict=True)):
         seq = frame.get("seq")
-        message = {"v": wire.SCHEMA_VERSION, "ts": t,
-                   "seq": seq if type(seq) is int and seq >= 0 else i,
-                   "source": "replay", "device": TOOLBOX_DEVICE, "hands": _plain(hands)}
+        message = keys.HANDS_FRAME.message(ts=t,
+                   seq=seq if type(seq) is int and seq >= 0 else i,
+                   source="replay", device=TOOLBOX_DEVICE, hands=_plain(hands))
         try:
             wire.validate(message, wire.HANDS_FRAME, "hands/frame")
         except RejectedMessage as e:

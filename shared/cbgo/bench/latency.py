@@ -269,7 +269,7 @@ class Driver:
     def reset_world(self) -> None:
         """Asks the robot to load the start scene (cbgo/sim/reset)."""
         replies = self.stack.query(self.stack.keys.of(keys.SIM_RESET),
-                                   {"v": wire.SCHEMA_VERSION, "scene": SCENE}, timeout=30.0)
+                                   keys.SIM_RESET.message(scene=SCENE), timeout=30.0)
         if not (replies and replies[0][0] and replies[0][1]["ok"]):
             raise RuntimeError(f"sim/reset failed: {replies}")
         self.holding = False

@@ -63,8 +63,8 @@ def run(args: argparse.Namespace) -> int:
             shown = last["intent"]
             print(f"correcting {shown.get('action')}({shown.get('object')}) of {user}"
                   + (f", episode {episode}" if episode else ""))
-        message = {"v": wire.SCHEMA_VERSION, "ts": time.time(), "episode": episode,
-                   "user": user, "action": args.action, "object": args.object}
+        message = topics.INTENT_FEEDBACK.message(ts=time.time(), episode=episode,
+                   user=user, action=args.action, object=args.object)
         key = keys.of(topics.INTENT_FEEDBACK)
         try:
             wire.validate(message, wire.INTENT_FEEDBACK, key)

@@ -53,9 +53,9 @@ def run(args: argparse.Namespace) -> int:
         if args.payload is not None:
             message = read_json_argument(args.payload)
             topic = keys.topic_of(selector)
-            if topic is not None and topic.suffix in wire.QUERY_SCHEMAS:
+            if topic is not None and topic.query_schema is not None:
                 try:
-                    wire.validate(message, wire.QUERY_SCHEMAS[topic.suffix], selector)
+                    wire.validate(message, topic.query_schema, selector)
                 except RejectedMessage as e:
                     print(f"cbgo: warning: the query breaks the contract: {e}", file=sys.stderr)
             payload = wire.encode(message)

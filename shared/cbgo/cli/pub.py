@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
         key = keys.resolve(args.key)
         topic = keys.topic_of(key)
         base = _message(args, topic.suffix if topic else None)
-        spec = wire.SCHEMAS.get(topic.suffix) if topic else None
+        spec = topic.schema if topic else None
         stream = spec is not None and hasattr(spec, "fields") and "seq" in spec.fields
         _check(_stamped(base, 0, stream) if args.stamp else base, spec, key, args.force)
         pub = sess.declare_publisher(key)

@@ -21,7 +21,7 @@ import json
 import sys
 from pathlib import Path
 
-from cbgo import client, keys, wire
+from cbgo import client, keys
 from cbgo.cli.common import add_network_arguments, fail, read_json_argument, session
 from cbgo.codec import pretty
 from cbgo.errors import ConfigError, QueryError
@@ -79,7 +79,7 @@ def _print(reply: dict, as_json: bool) -> None:
 def run(args: argparse.Namespace) -> int:
     """Runs the sub-verb; returns 0 on success, 1 when the simulator said no."""
     if args.sim_verb == "snapshot":
-        message = {"v": wire.SCHEMA_VERSION}
+        message = keys.SIM_RENDER.message()
         for name in ("camera", "width", "height"):
             if getattr(args, name) is not None:
                 message[name] = getattr(args, name)
@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {args.output} ({len(reply['png'])} bytes)")
         return 0
     if args.sim_verb == "reset":
-        message = {"v": wire.SCHEMA_VERSION}
+        message = keys.SIM_RESET.message()
         if args.seed is not None:
             message["seed"] = args.seed
         if args.scene is not None:
@@ -101,8 +101,8 @@ def run(args: argparse.Namespace) -> int:
         params = read_json_argument(args.params)
         if not isinstance(params, dict):
             fail("--params must be a JSON object", 2)
-        reply = _query(args, keys.ROBOT_ACT, {"v": wire.SCHEMA_VERSION, "action": args.action,
-                                              "object": args.object, "params": params})
+        reply = _query(args, keys.ROBOT_ACT, keys.ROBOT_ACT.message(action=args.action,
+                                              object=args.object, params=params))
     _print(reply, args.json)
     if not reply["ok"]:
         print(f"cbgo: {reply['error']}", file=sys.stderr)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from cbgo import wire
 from cbgo.errors import RejectedMessage
-from cbgo.keys import Keys
+from cbgo.keys import TOPICS, Keys
 from cbgo.recording import Recorder
 
 FOLLOWED = ("episode/event", "episode/summary", "intent", "plan/status", "scene/state", "user")
@@ -73,7 +73,7 @@ class Inbox:
         if suffix not in FOLLOWED:
             return
         try:
-            message = wire.decode_checked(payload, wire.SCHEMAS.get(suffix), key)
+            message = wire.decode_checked(payload, TOPICS[suffix].schema, key)
         except RejectedMessage:
             self.rejected += 1
             return
