@@ -1,7 +1,6 @@
 """leap-bridge through real processes: rate, validity, gaze resolution, play on demand."""
 
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -108,7 +107,9 @@ def test_an_mcap_recording_is_replayed_with_its_hands_order_and_pace(stack, tmp_
     stack.start_service("leap-bridge", "--source", "replay", str(path))
     first_palm = next(f.hands[0]["palm_position"] for f in recorded if f.hands)
     frames.wait(lambda m: m["hands"] and m["hands"][0]["palm_position"] == first_palm)
-    time.sleep(4.5)
+    # every recorded hand frame has been replayed once its count of hand frames has arrived
+    frames.wait_count(sum(1 for f in recorded if f.hands), lambda m: bool(m["hands"]),
+                      timeout=30)
     items = frames.arrivals()
     palms = [(t, m["hands"][0]["palm_position"]) for t, m in items if m["hands"]]
     wanted = [f.hands[0]["palm_position"] for f in recorded if f.hands]
