@@ -5,7 +5,9 @@ Behaviour (the contract is services/leap_bridge/README.md):
   `cbgo record`, or a JSON recording of the paper's gesture toolbox) or ``simulated`` (a
   scenario performed by simulated users with a kinematic hand);
 - a pacing thread publishes ``cbgo/hands/frame`` on absolute deadlines (``--rate-hz`` for the
-  simulated user, the recorded timing ÷ ``--speed`` for replays, as frames arrive for a sensor);
+  simulated user, the recorded timing ÷ ``--speed`` for replays, as frames arrive for a sensor),
+  each scheduled frame stamped with its deadline (its capture time; a stall delays delivery
+  but leaves no gap in the stamps);
   after a simulated scenario or a replay ends, frames with no hand keep coming at the rate, as
   from a sensor nobody is using;
 - every frame carries the configured Leap→base transform (``to_base``);
@@ -203,12 +205,16 @@ class LeapBridge(Service):
                 wait = deadline - time.perf_counter()
                 if wait > 0:
                     time.sleep(wait)
-                late = time.perf_counter() - deadline
-            self._publish(frame)
-            self.stats.add(time.perf_counter(), max(0.0, late))
+                late = max(0.0, time.perf_counter() - deadline)
+            # A scheduled frame (simulated, replayed) is stamped when it was due, its capture
+            # time, as a sensor stamps a frame when it captures it: a stall of this process
+            # delays delivery but is not a gap in the hand's motion (which would end an
+            # episode in the middle of a gesture).
+            self._publish(frame, time.time() - late)
+            self.stats.add(time.perf_counter(), late)
 
-    def _publish(self, frame: SourceFrame) -> None:
-        now = time.time()
+    def _publish(self, frame: SourceFrame, now: float) -> None:
+        """Publishes one frame captured at `now` (and the user and gaze that go with it)."""
         self.ctx.publish(keys.HANDS_FRAME, keys.HANDS_FRAME.message(
             ts=now, seq=self.seq, source=self.stream.kind, device=self.stream.device,
             hands=frame.hands, to_base=self.to_base.reshape(-1).tolist()))
