@@ -185,6 +185,8 @@ def test_a_low_confidence_intent_can_be_confirmed_or_rejected_from_the_page(page
     expect(panel).not_to_contain_text("did you mean")
     stack.put("intent", low_confidence("ep-web-confirm"))
     panel.locator("[data-testid=feedback-confirm]").click()
+    # The page's answer first: if the server refused, its reason is in the failure message.
+    expect(panel.locator("#fb-result")).to_contain_text("sent to cbgo/intent/feedback")
     confirmed = feedback.first(lambda m: m["episode"] == "ep-web-confirm", timeout=10)
     assert (confirmed["action"], confirmed["object"], confirmed["user"]) == (
         "pick_up", "cup2", "user1")  # the current user: no summary of this episode was seen
