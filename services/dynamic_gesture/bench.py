@@ -288,8 +288,10 @@ def run(args: argparse.Namespace) -> int:
           f"; still hands: {acc['still_windows']} windows, {acc['still_false_strokes']} "
           "final ones won by a gesture")
     _print_block("mid-stroke windows", acc["mid_stroke"], classifier.names)
-    figures["streams"] = realbench.run_streams(classifier, args.streams_sim, args.seed + 20_000,
-                                               SegmenterConfig(), simdata.RANGES[args.ranges])
+    if args.streams_sim > 0:  # --streams-sim 0: no continuous streams
+        figures["streams"] = realbench.run_streams(classifier, args.streams_sim,
+                                                   args.seed + 20_000, SegmenterConfig(),
+                                                   simdata.RANGES[args.ranges])
     finals = [lw.window for u in users for lw in u.windows if lw.window.final]
     figures["cost"] = cost(classifier, finals)
     c = figures["cost"]
