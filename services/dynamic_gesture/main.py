@@ -156,7 +156,7 @@ class DynamicGesture(Service):
         msg = keys.GESTURES_DYNAMIC.message(ts=time.time(), seq=self.seq,
                hand_id=window.hand_id, side=window.side,
                names=list(self.classifier.names), probs=[float(p) for p in probs],
-               window=[window.t_start, window.t_end], model=MODEL)
+               window=[window.t_start, window.t_end], final=window.final, model=MODEL)
         self.seq += 1
         return msg
 

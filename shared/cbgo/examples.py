@@ -103,7 +103,7 @@ def _builders(ts: float) -> dict[tuple[str, str], Any]:
             "names": ["swipe_up", "swipe_down", "swipe_left", "swipe_right", "rotate",
                       "no_gesture"],
             "probs": [0.02, 0.9, 0.02, 0.02, 0.02, 0.02], "window": [ts - 0.6, ts],
-            "model": "dynamic-promp-1"},
+            "final": True, "model": "dynamic-promp-1"},
         ("episode/event", "message"): {"v": v, "ts": ts, "episode": "ep-0001",
                                        "kind": "trigger", "gesture": "grab", "prob": 0.92},
         ("episode/summary", "message"): {

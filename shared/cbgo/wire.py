@@ -212,7 +212,7 @@ GESTURE_FIELDS: dict[str, Spec] = {
     "names": ListOf(NAME, 1), "probs": ListOf(PROB, 1), "model": Str(nonempty=False),
 }
 GESTURES_STATIC = Obj(GESTURE_FIELDS, rules=(_probs_sum_to_one,))
-GESTURES_DYNAMIC = Obj({**GESTURE_FIELDS, "window": Vec(2)},
+GESTURES_DYNAMIC = Obj({**GESTURE_FIELDS, "window": Vec(2)}, optional={"final": Bool()},
                        rules=(_probs_sum_to_one, _window_ordered))
 
 EPISODE_EVENT = Obj(

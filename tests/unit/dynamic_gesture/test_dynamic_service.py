@@ -48,6 +48,8 @@ def test_a_swipe_publishes_valid_windows_and_its_final_window_names_it(bus, synt
     assert winner(final) == "swipe_up" and max(final["probs"]) > 0.8
     assert T0 < final["window"][0] < final["window"][1] < T0 + 1.2
     assert bus.counters.published == len(out)
+    # one stroke: every window evaluated mid-stroke says so, and the last one is final
+    assert [m["final"] for _, m in out] == [False] * (len(out) - 1) + [True]
 
 
 def test_a_still_hand_publishes_nothing(bus, synth):
