@@ -26,7 +26,12 @@ def test_cbgo_up_leap_bridge_streams_valid_frames_at_the_configured_rate(stack, 
     for _, message in got:
         wire.validate(message, wire.HANDS_FRAME, "cbgo/hands/frame")
     seqs = [m["seq"] for _, m in got]
-    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+    assert all(b > a for a, b in zip(seqs, seqs[1:], strict=False)), "out of order or repeated"
+    # hands/frame is a DROP key (docs/protocol.md: under congestion the newest frame wins), so
+    # on a loaded machine the transport may lose a frame on its way here; the bridge numbers
+    # every frame it publishes, so the gaps are the frames lost, and they must stay rare.
+    lost = seqs[-1] - seqs[0] + 1 - len(seqs)
+    assert lost <= 0.01 * len(seqs), f"{lost} of {len(seqs) + lost} frames lost"
     assert all(m["source"] == "simulated" and len(m["to_base"]) == 16 for _, m in got)
     assert any(m["hands"] for _, m in got)
 
