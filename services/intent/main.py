@@ -167,19 +167,15 @@ class Intent(Service):
         Raises:
             QueryError: the model does not load; the old one keeps serving.
         """
-        requested = query.get("model")
-        if requested is not None and not (isinstance(requested, str) and requested):
-            raise QueryError("model must be a path string")
-        path = Path(requested) if requested else self.store.path()
-        stamps = self.store.stamps(path)  # before loading, as `ModelStore.snapshot`
+        path, stamps = self.store.reload_target(query)
         try:
             previous = self._swap(path)
         except ConfigError as e:
             self.ctx.counters.error("reload", str(e))
             raise QueryError(f"reload failed, still serving {self.engine.model.name}: "
                              f"{e}") from None
-        if requested:
-            self.settings.model = self.store.configured = requested
+        if self.store.switch_to(query):
+            self.settings.model = self.store.configured
         self.store.served(path, stamps)
         self.ctx.log.info("reloaded: %s -> %s (%s)", previous.model.name,
                           self.engine.model.name, path)

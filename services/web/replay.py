@@ -69,9 +69,9 @@ def load(path: str | Path, rate_hz: float = 30.0,
             replay.skip("not a contract key")
             continue
         try:
-            message = wire.validate(record.message, wire.SCHEMAS.get(topic.suffix), record.key)
+            message = wire.validate(record.message, topic.schema, record.key)
         except RejectedMessage:
-            if topic.suffix not in wire.ANY_PAYLOAD:
+            if not topic.any_payload:
                 replay.skip("breaks the contract")
                 continue
             message = {}  # a stop is a stop whatever it carries, as live

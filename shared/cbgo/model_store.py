@@ -23,6 +23,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from cbgo.errors import QueryError
+
 WATCH_HELP = ("poll the model files for changes every S seconds and reload them (0: only on "
               "the reload verb)")
 
@@ -82,6 +84,27 @@ class ModelStore:
         """
         path = self.path()
         return path, self.stamps(path)
+
+    def reload_target(self, query: dict) -> tuple[Path, tuple]:
+        """Returns what a ``reload`` query asks to load and its stamps, taken before loading.
+
+        ``{model: PATH}`` names another model (adopt it with `switch_to` once it loaded);
+        ``{}`` reloads the model chosen now.
+
+        Raises:
+            QueryError: ``model`` is not a path string.
+        """
+        requested = query.get("model")
+        if requested is not None and not (isinstance(requested, str) and requested):
+            raise QueryError("model must be a path string")
+        path = Path(requested) if requested else self.path()
+        return path, self.stamps(path)
+
+    def switch_to(self, query: dict) -> str | None:
+        """After a reload loaded: serves the query's ``model`` from now on; returns it, if any."""
+        if query.get("model"):
+            self.configured = query["model"]
+        return query.get("model")
 
     def served(self, path: Path, stamps: tuple) -> None:
         """Records what was loaded (or tried: a broken file is reported once, not each poll)."""

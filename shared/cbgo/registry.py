@@ -24,8 +24,6 @@ import pkgutil
 
 from cbgo.manifest import Manifest, Tool
 
-ServiceInfo = Manifest  # the older name of a registry entry: one manifest per service
-
 
 def discover() -> tuple[Manifest, ...]:
     """Returns the manifest of every service package installed, in pipeline order.

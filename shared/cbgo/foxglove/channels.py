@@ -44,7 +44,7 @@ def foxglove_schema(name: str) -> dict:
 def wire_schema(keys: Keys, key: str) -> tuple[str, dict]:
     """Returns (schema name, JSON Schema) of the channel of a concrete data key."""
     topic = keys.topic_of(key)
-    if topic is None or topic.suffix not in wire.SCHEMAS:
+    if topic is None or topic.query:
         return key.replace("/", "."), {"$schema": json_schema.DIALECT, "title": key,
                                        "type": "object"}
     return f"cbgo.{topic.suffix.replace('/', '.')}", json_schema.for_key(topic.suffix)
@@ -87,10 +87,10 @@ def decode_valid(keys: Keys, key: str, payload: bytes, max_bytes: int) -> tuple[
         RejectedMessage: not a msgpack map, or it breaks the key's contract.
     """
     topic = keys.topic_of(key)
-    suffix = topic.suffix if topic else ""
-    spec = wire.SCHEMAS.get(suffix)
-    message = wire.decode_checked(payload, spec, key, wire.max_bytes_for(suffix, max_bytes))
-    return suffix, message
+    if topic is None:
+        return "", wire.decode_checked(payload, None, key, max_bytes)
+    return topic.suffix, wire.decode_checked(payload, topic.schema, key,
+                                             topic.max_bytes(max_bytes))
 
 
 class JsonChannels:
