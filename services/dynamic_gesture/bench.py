@@ -27,8 +27,9 @@
    (``ts``) and to arrival at a subscriber. It includes the ``end_hold_s`` the segmenter waits
    to be sure the hand stopped.
 
-4. **Real people** (``--real DIR``): the SHREC'17 skeletons through live services, see
-   `realbench`; ``--realism DIR`` compares the simulated users' swipe habits with theirs.
+4. **Real people** (``--real DIR``): the SHREC'17 skeletons or Leap Motion recordings
+   (LeapJS frames, `leapjs`) through live services, see `realbench`; ``--realism DIR``
+   compares the simulated users' swipe habits with theirs.
 
 Examples::
 
@@ -79,15 +80,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="measure latency through real processes [on]")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
     real = parser.add_argument_group(
-        "real people (SHREC'17 skeletons, `cbgo.services.dynamic_gesture.shrec`)")
+        "real people (SHREC'17 skeletons, `shrec`; Leap Motion LeapJS recordings, `leapjs`)")
     real.add_argument("--real", type=Path, metavar="DIR", default=None,
-                      help="instead of the above: play real recordings from this datasetShrec "
-                           "folder through live services (realbench)")
+                      help="instead of the above: play real recordings through live services "
+                           "(realbench): a SHREC'17 datasetShrec folder, or a folder of LeapJS "
+                           "recordings (the Guinevere set)")
     real.add_argument("--split", choices=("train", "test"), default="train",
                       help="which official split's people [train; test is reserved for "
                            "acceptance checks]")
     real.add_argument("--per-class", type=int, default=12,
-                      help="recordings per swipe, and of the other gestures [12]")
+                      help="recordings per swipe, and of the other gestures; 0: all [12]")
     real.add_argument("--streams", type=int, default=3,
                       help="continuous streams (one person each, hand never leaves) [3]")
     real.add_argument("--realism", type=Path, metavar="DIR", default=None,

@@ -1,8 +1,11 @@
 """Real people's strokes through the live services: `cbgo bench dynamic --real DIR`.
 
-The SHREC'17 skeletons (`shrec`) are played as ``cbgo/hands/frame`` at their recorded 30 Hz,
-in real time, to a router, dynamic-gesture and episode running as processes with their default
-settings. Printed, on ``gestures/dynamic`` and on the episode summary's g:
+Real recordings are played as ``cbgo/hands/frame`` at their recorded rate, in real time, to a
+router, dynamic-gesture and episode running as processes with their default settings. Two data
+sets, told apart by what the folder holds: the SHREC'17 depth-camera skeletons (`shrec`, 30 Hz;
+a ``datasetShrec`` folder) and Leap Motion recordings in LeapJS's JSON frames (`leapjs`, the
+Guinevere set, ~115 Hz; a folder of person folders of ``NAME-TAKE.json``). Printed, on
+``gestures/dynamic`` and on the episode summary's g:
 
 - **Trials**: each swipe sequence (the person's whole recording: preparation, swipe, whatever
   return it holds) is one episode, the hand then leaving the field. The dynamic answer of a
@@ -11,19 +14,22 @@ settings. Printed, on ``gestures/dynamic`` and on the episode summary's g:
   balanced accuracy over the four swipes. The other gestures of the data set (grab, tap,
   pinch, expand, shake) are played too: any swipe or rotate reported for them is a false
   trigger.
-- **Continuous streams**: per person, several sequences one after the other without the hand
-  leaving (a slow 0.6 s move from the end of one to the start of the next, then a 0.4 s hold).
+- **Continuous streams** (SHREC'17 only: they are built from its joints): per person, several
+  sequences one after the other without the hand leaving (a slow 0.6 s move from the end of
+  one to the start of the next, then a 0.4 s hold).
   Recall of the swipes, and false triggers per minute of the time outside the swipes (the
   returns, holds, moves and the other gestures): a stroke reported as a gesture (p ≥ 0.5) that
   overlaps no swipe of that name, counted once however many of its windows were reported.
 - **Latency**: from a stroke's last sample (``window[1]``) to the arrival of its last window.
 
-People: ``--split train`` (the default) are the official train split's people, the only ones
-fitting, tuning and selection may look at. ``--split test`` is reserved for acceptance checks.
+People: ``--split train`` (the default) are SHREC'17's official train split's people, the only
+ones fitting, tuning and selection may look at. ``--split test`` is reserved for acceptance
+checks. The LeapJS set is never fitted on: all its people are scored (``--split`` is ignored).
 
 Examples::
 
     cbgo bench dynamic --real ~/.cache/cbgo/shrec17/datasetShrec
+    cbgo bench dynamic --real ~/.cache/cbgo/guinevere --per-class 0   # every Leap recording
     cbgo bench dynamic --real DIR --per-class 5 --streams 2 --json /tmp/real.json
 """
 
@@ -33,12 +39,13 @@ import json
 import tempfile
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from cbgo import keys, metrics, wire
-from cbgo.services.dynamic_gesture import shrec, simdata
+from cbgo.services.dynamic_gesture import leapjs, shrec, simdata
 from cbgo.services.dynamic_gesture.stroke import GESTURE_P, ReturnFilter, Segmenter, reported
 from cbgo.simuser.motion import CENTRE_MM
 from cbgo.simuser.scenario import IDLE_MOTIONS, Episode, GestureStep, Scenario
@@ -50,13 +57,53 @@ NOTHING = "nothing"
 MOVE_S, MOVE_MM_S, HOLD_S, LEAVE_S = 0.6, 100.0, 0.4, 0.6
 
 
-def pick_trials(sequences: list[shrec.Sequence], per_class: int, seed: int
-                ) -> list[shrec.Sequence]:
-    """Returns `per_class` sequences of each swipe and of the other gestures, people mixed."""
+@dataclass(frozen=True)
+class Trial:
+    """One real recording to play: its truth and how to get its hand frames.
+
+    Attributes:
+        truth: the swipe performed, or "none" for a gesture that is no dynamic gesture of ours.
+        gesture: the data set's name of the gesture.
+        person: who performed it.
+        recording: a `shrec.Sequence` or a `leapjs.Recording`.
+    """
+
+    truth: str
+    gesture: str
+    person: str
+    recording: object
+
+    def frames(self) -> list[tuple[float, list[dict]]]:
+        """Returns (time from the first frame, hands) per recorded frame."""
+        if isinstance(self.recording, shrec.Sequence):
+            hands = shrec.to_hands(self.recording.joints())
+            return [(i / shrec.RATE_HZ, [hand]) for i, hand in enumerate(hands)]
+        return [(m["ts"], m["hands"]) for m in self.recording.frames()]
+
+
+def shrec_trial(seq: shrec.Sequence) -> Trial:
+    """Returns a SHREC'17 sequence as a trial."""
+    return Trial(shrec.SWIPES.get(seq.gesture, "none"), seq.name, str(seq.person), seq)
+
+
+def leapjs_trial(recording: leapjs.Recording) -> Trial:
+    """Returns a LeapJS recording as a trial (its palm turns are not scored: `leapjs`)."""
+    truth = recording.gesture if recording.gesture in leapjs.SWIPES else "none"
+    name = recording.gesture + (f"#{recording.variant}" if recording.variant else "")
+    return Trial(truth, name, recording.person, recording)
+
+
+def pick_trials(trials: list[Trial], per_class: int, seed: int) -> list[Trial]:
+    """Returns `per_class` trials of each swipe and of the other gestures, people mixed.
+
+    ``per_class`` 0 or less: every trial.
+    """
+    if per_class <= 0:
+        return list(trials)
     rng = np.random.default_rng(seed)
     out = []
-    for gestures in [[g] for g in shrec.SWIPES] + [list(OTHER)]:
-        pool = [s for s in sequences if s.gesture in gestures]
+    for truth in [*shrec.SWIPES.values(), "none"]:
+        pool = [t for t in trials if t.truth == truth]
         out += [pool[i] for i in rng.choice(len(pool), min(per_class, len(pool)),
                                             replace=False)]
     return out
@@ -109,23 +156,30 @@ class _Player:
         with self.lock:
             self.summaries.append(wire.decode(sample.payload.to_bytes()))
 
-    def play(self, joints: np.ndarray) -> tuple[float, float]:
-        """Plays (n, 22, 3) joints at 30 Hz, then empty frames; returns the ts span.
+    def play(self, frames: list[tuple[float, list[dict]]], device: str
+             ) -> tuple[float, float]:
+        """Plays (time, hands) frames at their recorded times, then empty frames.
 
-        Each play is a new appearance of the hand, with a new tracking id as a real sensor
-        gives it (the service keeps each hand's last gesture to tell its return).
+        Each play is a new appearance of its hands, with new tracking ids as a real sensor
+        gives them (the service keeps each hand's last gesture to tell its return). Returns
+        the ts span of the recording.
         """
-        self.hand_id += 1
-        hands = shrec.to_hands(joints, hand_id=self.hand_id)
+        ids: dict[int, int] = {}
         t_first = time.time()
-        for i, hand in enumerate([*hands, *([None] * int(LEAVE_S * shrec.RATE_HZ))]):
-            due = t_first + i / shrec.RATE_HZ
-            time.sleep(max(0.0, due - time.time()))
-            self.pub.put(wire.encode(keys.HANDS_FRAME.message(ts=time.time(),
-                                      seq=self.seq, source="replay",
-                                      device="shrec17", hands=[hand] if hand else [])))
+        last = frames[-1][0] if frames else 0.0
+        leave = [(last + (i + 1) / shrec.RATE_HZ, []) for i in range(int(LEAVE_S * shrec.RATE_HZ))]
+        for t, hands in [*frames, *leave]:
+            time.sleep(max(0.0, t_first + t - time.time()))
+            for hand in hands:
+                if hand["id"] not in ids:
+                    self.hand_id += 1
+                    ids[hand["id"]] = self.hand_id
+            hands = [{**hand, "id": ids[hand["id"]]} for hand in hands]
+            self.pub.put(wire.encode(keys.HANDS_FRAME.message(ts=time.time(), seq=self.seq,
+                                                              source="replay", device=device,
+                                                              hands=hands)))
             self.seq += 1
-        return t_first, t_first + len(hands) / shrec.RATE_HZ
+        return t_first, t_first + last
 
     def wait_summaries(self, count: int, timeout: float = 5.0) -> None:
         deadline = time.time() + timeout
@@ -155,25 +209,24 @@ def _summary_gesture(summary: dict) -> str:
     return max(names, key=lambda n: g[n]) if names else NOTHING
 
 
-def run_trials(player: _Player, trials: list[shrec.Sequence], log=print) -> dict:
+def run_trials(player: _Player, trials: list[Trial], device: str, log=print) -> dict:
     """Plays every trial as its own episode; returns the answers per trial."""
     rows = []
-    for i, seq in enumerate(trials):
+    for i, trial in enumerate(trials):
         with player.lock:
             first, n_sum = len(player.dynamic), len(player.summaries)
-        player.play(seq.joints())
+        player.play(trial.frames(), device)
         player.wait_summaries(n_sum + 1)
         with player.lock:
             messages = [m for _, m in player.dynamic[first:]]
             summary = player.summaries[n_sum] if len(player.summaries) > n_sum else {}
         reported = _reported(messages)
         dynamic = max(reported, key=lambda r: r[1])[0] if reported else NOTHING
-        truth = shrec.SWIPES.get(seq.gesture, "none")
-        rows.append({"truth": truth, "person": seq.person, "gesture": seq.name,
+        rows.append({"truth": trial.truth, "person": trial.person, "gesture": trial.gesture,
                      "dynamic": dynamic, "summary": _summary_gesture(summary),
                      "reports": [r[0] for r in reported]})
-        log(f"  [{i + 1}/{len(trials)}] {seq.name} (person {seq.person}): dynamic {dynamic}, "
-            f"summary {rows[-1]['summary']}")
+        log(f"  [{i + 1}/{len(trials)}] {trial.gesture} (person {trial.person}): dynamic "
+            f"{dynamic}, summary {rows[-1]['summary']}")
     return {"trials": rows}
 
 
@@ -182,7 +235,9 @@ def run_stream(player: _Player, sequences: list[shrec.Sequence]) -> dict:
     joints, spans = stream_joints(sequences)
     with player.lock:
         first = len(player.dynamic)
-    t0, t1 = player.play(joints)
+    hands = shrec.to_hands(joints)
+    t0, t1 = player.play([(i / shrec.RATE_HZ, [hand]) for i, hand in enumerate(hands)],
+                         "shrec17")
     time.sleep(0.5)
     with player.lock:
         messages = [m for _, m in player.dynamic[first:]]
@@ -247,20 +302,38 @@ def score(rows: list[dict], field: str) -> dict:
             "other_false": false}
 
 
+def real_trials(root: Path, split: str) -> tuple[str, list[Trial], list[shrec.Sequence]]:
+    """Returns the data set's device name, its trials and (SHREC'17 only) its sequences.
+
+    A folder with SHREC'17's split lists is SHREC'17; anything else is read as LeapJS
+    recordings.
+
+    Raises:
+        FileNotFoundError: neither data set is there.
+    """
+    if (root / "train_gestures.txt").is_file():
+        sequences = shrec.read_split(root, split)
+        return "shrec17", [shrec_trial(s) for s in sequences
+                           if s.gesture in shrec.SWIPES or s.gesture in OTHER], sequences
+    recordings = leapjs.read_set(root)
+    return "leapjs", [leapjs_trial(r) for r in recordings
+                      if r.gesture not in leapjs.NOT_SCORED], []
+
+
 def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
              json_path: Path | None, log=print) -> int:
     """The whole real-data bench (see the module docstring)."""
     from cbgo.testing import Stack  # noqa: PLC0415 (test harness only when benching live)
 
-    if split == "test":
+    device, all_trials, sequences = real_trials(root, split)
+    if device == "shrec17" and split == "test":
         log("note: the test split's people are reserved for acceptance checks; never tune on "
             "these figures")
-    sequences = shrec.read_split(root, split)
-    trials = pick_trials(sequences, per_class, seed)
+    trials = pick_trials(all_trials, per_class, seed)
     people = sorted({s.person for s in sequences})
     rng = np.random.default_rng(seed + 1)
     stream_sets = []
-    for person in rng.choice(people, min(streams, len(people)), replace=False):
+    for person in rng.choice(people, min(streams, len(people)), replace=False) if people else []:
         own = [s for s in sequences if s.person == person
                and (s.gesture in shrec.SWIPES or s.gesture in OTHER)]
         stream_sets.append([own[i] for i in rng.permutation(len(own))[:10]])
@@ -271,8 +344,9 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
         stack.wait_alive(["router", "dynamic-gesture", "episode"], timeout=90)
         player = _Player(stack)
         time.sleep(0.5)  # let the subscribers' declarations reach the router
-        log(f"{len(trials)} trials of the {split} split, real time")
-        result = run_trials(player, trials, log)
+        log(f"{len(trials)} trials of {device}"
+            + (f"'s {split} split" if device == "shrec17" else "") + ", real time")
+        result = run_trials(player, trials, device, log)
         result["streams"] = [run_stream(player, s) for s in stream_sets]
         result["latency_ms"] = latencies(player)
     for field in ("dynamic", "summary"):
@@ -300,7 +374,7 @@ def _print_score(field: str, block: dict) -> None:
     print(f"\n{where}: balanced accuracy over the swipes {block['balanced_accuracy']:.1%}")
     print(metrics.format_confusion(np.asarray(block["confusion"]), block["names"]))
     print("recall " + ", ".join(f"{n} {r:.0%}" for n, r in block["recall"].items()))
-    print(f"other gestures (grab, tap, expand, pinch, shake): {block['other_false']} of "
+    print(f"other gestures (no swipe of ours): {block['other_false']} of "
           f"{block['other_trials']} trials reported a dynamic gesture")
 
 

@@ -1,0 +1,115 @@
+"""The LeapJS converter (the Guinevere set) on recordings laid out like LeapJS's own frames."""
+
+import json
+
+import numpy as np
+import pytest
+
+from cbgo import keys, wire
+from cbgo.services.dynamic_gesture import leapjs, realbench
+from cbgo.services.dynamic_gesture.stroke import Segmenter
+
+
+def leapjs_hand(palm, hand_id=7, side="right"):
+    """One LeapJS hand over a desk sensor, palm down, fingers away from the user, and its
+    five pointables (carp → mcp → pip → dip → btip along −z)."""
+    palm = np.asarray(palm, dtype=float)
+    hand = {"id": hand_id, "type": side, "confidence": 0.9,
+            "palmPosition": palm.tolist(), "palmVelocity": [0.0, 0.0, 0.0],
+            "palmNormal": [0.0, -1.0, 0.0], "direction": [0.0, 0.0, -1.0],
+            "wrist": (palm + [0, 0, 50]).tolist(), "palmWidth": 82.0,
+            "grabStrength": 0.0, "pinchStrength": 0.1}
+    pointables = []
+    for finger in range(5):
+        base = palm + [-40.0 + 20.0 * finger, 0.0, 40.0]
+        joints = {name: (base + [0.0, 0.0, -25.0 * j]).tolist()
+                  for j, name in enumerate(leapjs.JOINTS)}
+        pointables.append({"handId": hand_id, "type": finger, "width": 17.0, **joints})
+    return hand, pointables
+
+
+def recording(palms, hz=115.0):
+    frames = []
+    for i, palm in enumerate(palms):
+        hand, pointables = leapjs_hand(palm)
+        frames.append({"id": 1000 + i, "timestamp": 5_000_000 + round(i * 1e6 / hz),
+                       "hands": [hand], "pointables": pointables})
+    return {"frames": len(frames), "data": frames}
+
+
+def swipe_palms(dx=220.0, n=115):
+    s = np.linspace(0, 1, n)[:, None]
+    s = s**3 * (10 - 15 * s + 6 * s**2)
+    move = np.array([0.0, 200.0, 0.0]) + s * [dx, 0.0, 0.0]
+    still = np.repeat(move[:1], 40, axis=0)
+    return np.concatenate([still, move, np.repeat(move[-1:], 30, axis=0)])
+
+
+@pytest.fixture
+def dataset(tmp_path):
+    """Two people's folders: a swipe right with the palm, a tap, and a file that is no take."""
+    for person in ("01", "02"):
+        (tmp_path / person).mkdir()
+        (tmp_path / person / "swipe_right#palm-1.json").write_text(
+            json.dumps(recording(swipe_palms())))
+        (tmp_path / person / "tap-2.json").write_text(json.dumps(recording(swipe_palms(0.0))))
+    (tmp_path / "info.json").write_text("{}")
+    return tmp_path
+
+
+def test_every_converted_frame_fits_the_contract(dataset):
+    rec = leapjs.read_set(dataset)[0]
+    for msg in rec.frames():
+        wire.validate(msg, wire.schema_for(keys.HANDS_FRAME.suffix))
+
+
+def test_positions_stay_in_the_leap_frame_and_time_is_the_device_clock_in_seconds(dataset):
+    frames = leapjs.read_set(dataset)[0].frames()
+    first, last = frames[0]["hands"][0], frames[-1]["hands"][0]
+    assert np.allclose(np.subtract(last["palm_position"], first["palm_position"]),
+                       [220.0, 0.0, 0.0])
+    assert frames[0]["ts"] == 0.0
+    assert frames[115]["ts"] == pytest.approx(1.0, abs=1e-5)
+    assert first["palm_normal"] == [0.0, -1.0, 0.0] and first["side"] == "right"
+
+
+def test_bones_run_carp_mcp_pip_dip_tip_with_the_fingers_in_order(dataset):
+    hand = leapjs.read_set(dataset)[0].frames()[0]["hands"][0]
+    assert [f["type"] for f in hand["fingers"]] == ["thumb", "index", "middle", "ring", "pinky"]
+    index = hand["fingers"][1]["bones"]
+    assert [b["type"] for b in index] == ["metacarpal", "proximal", "intermediate", "distal"]
+    for a, b in zip(index, index[1:], strict=False):
+        assert a["next_joint"] == b["prev_joint"]
+    assert index[0]["prev_joint"][2] - index[-1]["next_joint"][2] == pytest.approx(100.0)
+
+
+def test_names_variants_people_and_takes_come_from_the_file_names(dataset):
+    recs = leapjs.read_set(dataset)
+    assert {(r.gesture, r.variant, r.person, r.take) for r in recs} == {
+        ("swipe_right", "palm", "01", 1), ("tap", "", "01", 2),
+        ("swipe_right", "palm", "02", 1), ("tap", "", "02", 2)}
+    trials = [realbench.leapjs_trial(r) for r in recs]
+    assert {(t.truth, t.gesture) for t in trials} == {("swipe_right", "swipe_right#palm"),
+                                                     ("none", "tap")}
+
+
+def test_an_empty_folder_names_where_to_get_the_data(tmp_path):
+    with pytest.raises(FileNotFoundError, match="sluyters/QuantumLeap"):
+        leapjs.read_set(tmp_path)
+
+
+def test_the_segmenter_cuts_one_swipe_out_of_a_converted_recording(dataset):
+    rec = next(r for r in leapjs.read_set(dataset) if r.gesture == "swipe_right")
+    segmenter, windows = Segmenter(), []
+    for msg in rec.frames():
+        windows += segmenter.update(msg["ts"], msg["hands"])
+    finals = [w for w in windows if w.final]
+    assert len(finals) == 1
+    assert finals[0].obs[-1, 0] > 150.0  # the stroke goes right
+
+
+def test_a_trial_plays_its_frames_at_their_recorded_times(dataset):
+    rec = leapjs.read_set(dataset)[0]
+    frames = realbench.leapjs_trial(rec).frames()
+    assert len(frames) == len(rec.frames())
+    assert frames[-1][0] == pytest.approx((len(frames) - 1) / 115.0, abs=1e-5)
