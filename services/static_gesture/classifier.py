@@ -17,8 +17,9 @@ Rules (the model files are written by ``cbgo.services.static_gesture.train``):
   hands. The thumb-metacarpal features 2..5 follow the recording device's convention for a
   zero-length bone and are left out of ``inputs`` by the trainer (see ``train``).
 - ``transform`` (optional): ``"invariant-1"`` makes the network read the 45 device-independent
-  features derived from the 57 (``invariant.derive``), and ``inputs`` index those; absent or
-  null, ``inputs`` index the 57 themselves (models trained before it).
+  features derived from the 57 (``invariant.derive``), ``"invariant-2"`` the same with the
+  proximal bones against the palm's axis (``invariant.derive_palm``), and ``inputs`` index
+  those; absent or null, ``inputs`` index the 57 themselves (models trained before it).
 - Posterior averaging: at load, ``samples`` weight sets are drawn from the variational
   posterior q(w) (seeded by the weights' hash, so the same model gives the same draws) and kept
   as stacked numpy arrays; a prediction is the mean of the softmax over those networks. Fixed
@@ -228,8 +229,8 @@ class StaticClassifier:
         x = np.atleast_2d(np.asarray(features, dtype=np.float64))
         if len(x) == 0:
             return np.zeros((0, len(self.names)))
-        if self.transform == invariant.TRANSFORM:
-            x = invariant.derive(x)
+        if self.transform in invariant.TRANSFORMS:
+            x = invariant.transform(x, self.transform)
         return self.posterior.predict((x[:, self.inputs] - self.mean) / self.std)
 
     def classify_hands(self, hands: list[dict]) -> np.ndarray:
@@ -268,9 +269,10 @@ def check_metadata(meta: dict, arch: bayes.Architecture) -> None:
         raise ConfigError(f"model names {names} do not match its {arch.n_out} outputs "
                           "(or are not unique)")
     transform = meta.get("transform")
-    if transform not in (None, invariant.TRANSFORM):
+    if transform is not None and transform not in invariant.TRANSFORMS:
         raise ConfigError(f"model feature transform {transform!r} is unknown to this cbgo "
-                          f"(knows {invariant.TRANSFORM!r}); retrain with `cbgo train static`")
+                          f"(knows {', '.join(invariant.TRANSFORMS)}); retrain with "
+                          "`cbgo train static`")
     width = F.N_FEATURES if transform is None else invariant.N_DERIVED
     inputs = meta["inputs"]
     if len(inputs) != arch.n_in or not all(0 <= int(i) < width for i in inputs):

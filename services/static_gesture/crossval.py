@@ -14,8 +14,9 @@ counts as rejected when the model answers ``none`` or its top probability is bel
 ``REJECT_BELOW`` (0.5).
 
 Figures: per-class recall and balanced accuracy of the gestures (a ``none`` answer is wrong),
-per-person accuracy, the confusion, rejection per held-out pose, and accuracy by the tracker's
-confidence (the frame's ``Confidence``).
+per-person accuracy, the confusion, rejection per held-out pose, accuracy by the tracker's
+confidence (the frame's ``Confidence``), and frame accuracy with the held-out hands pitched by
+±30° about the palm (`PITCHED_DEG`).
 """
 
 from __future__ import annotations
@@ -34,6 +35,16 @@ from cbgo.wire import STATIC_GESTURES
 POSE_HALVES = (("ok", "hang", "down"), ("C", "L", "heavy"))
 REJECT_BELOW = 0.5
 CONFIDENCE_BINS = (0.0, 0.25, 0.5, 0.75, 0.9, 1.0001)
+PITCHED_DEG = (-30.0, 30.0)
+"""The held-out people's frames are also scored turned by these pitches about the palm: how the
+model holds when a person (or a sensor mount) holds the hand otherwise."""
+
+
+def pitch_rotations(n: int, deg: float) -> np.ndarray:
+    """Returns n copies of the rotation that pitches a hand by ``deg`` (about the x axis)."""
+    a = np.deg2rad(deg)
+    r = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
+    return np.broadcast_to(r, (n, 3, 3))
 
 
 def person_folds(people: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
@@ -74,7 +85,10 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
         sub = frames.subset(test)
         probs = clf.predict_features(mmhgr.features57(sub))
         parts.append({"frames": sub, "pred": np.array(clf.names)[probs.argmax(1)],
-                      "top": probs.max(1), "held_unknown": np.isin(sub.pose, held_out)})
+                      "top": probs.max(1), "held_unknown": np.isin(sub.pose, held_out),
+                      "pitched": {deg: np.array(clf.names)[clf.predict_features(
+                          mmhgr.features57(sub, pitch_rotations(len(sub), deg))).argmax(1)]
+                          for deg in PITCHED_DEG}})
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
@@ -125,7 +139,10 @@ def summarise(parts: list[dict]) -> dict:
         sel = known & (conf >= lo) & (conf < hi)
         by_conf.append({"lo": lo, "hi": min(hi, 1.0), "n": int(sel.sum()),
                         "accuracy": float(correct[sel].mean()) if sel.any() else None})
+    pitched = {str(deg): float((np.concatenate([p["pitched"][deg] for p in parts]) == label)[
+        known].mean()) for deg in (parts[0].get("pitched") or {})}
     return {"classes": classes, "recall": recall, "balanced_accuracy": float(np.mean(recall)),
+            "pitched": pitched,
             "accuracy": float(correct[known].mean()), "n": int(known.sum()),
             "per_person": per_person, "per_style": per_style, "confusion": confusion,
             "names": names,
@@ -176,6 +193,9 @@ def print_figures(fig: dict) -> None:
         print(f"  the same poses where other people's took part in training: "
               f"{fig['rejection_seen_overall']:.1%} rejected; " + ", ".join(
                   f"{p} {r:.1%}" for p, r in fig["rejection_seen"].items()))
+    if fig.get("pitched"):
+        print("  the same frames with the hand pitched about the palm: " + ", ".join(
+            f"{float(d):+.0f}° {a:.2%}" for d, a in fig["pitched"].items()))
     print("accuracy by tracking confidence: " + "; ".join(
         f"[{b['lo']:.2f}, {b['hi']:.2f}) {b['accuracy']:.1%} (n={b['n']})" if b["n"] else
         f"[{b['lo']:.2f}, {b['hi']:.2f}) - (n=0)" for b in fig["by_confidence"]))

@@ -33,6 +33,9 @@ from cbgo.wire import FINGER_TYPES
 
 TRANSFORM = "invariant-1"
 """The name a model's metadata gives this feature set (``"transform"``)."""
+TRANSFORM_PALM = "invariant-2"
+"""The same features with every proximal bone against the palm's own axis (`derive_palm`)."""
+TRANSFORMS = (TRANSFORM, TRANSFORM_PALM)
 
 _BONES = ("proximal_rel_hand", "intermediate", "distal")
 NAMES: tuple[str, ...] = (
@@ -69,6 +72,43 @@ def derive(x57: np.ndarray) -> np.ndarray:
     angles = np.stack([proximal, bones[:, :, 2], bones[:, :, 3]], 2).reshape(len(x), 30)
     out = np.concatenate([angles, x[:, F.DISTANCE_FEATURES]], 1)
     return out[0] if single else out
+
+
+def palm_axis(x57: np.ndarray) -> np.ndarray:
+    """Returns (N, 2) pitch and yaw differences of the hand direction against its palm axis.
+
+    The palm axis is the mean of the index..pinky metacarpal features. Those bones point from
+    the knuckles back to the wrist (the recording convention), so each metacarpal feature is
+    about ``angles(d) − angles(−d)``: twice the hand's pitch, and ±π in yaw. Taking it away
+    from a proximal feature leaves the finger's bend against the palm, whatever the hand's pitch.
+    """
+    x = np.atleast_2d(np.asarray(x57, dtype=np.float64))
+    meta = x[:, 2:42].reshape(len(x), 5, 4, 2)[:, 1:, 0]
+    yaw = np.angle(np.exp(1j * meta[..., 1]).mean(1))  # circular mean: the yaws sit at ±π
+    return np.stack([meta[..., 0].mean(1), yaw], 1)
+
+
+def derive_palm(x57: np.ndarray) -> np.ndarray:
+    """Returns the 45 features of `derive` with the proximal bones against the palm axis.
+
+    Why: in `derive` a proximal feature is about "twice the hand's pitch + the finger's bend",
+    so it carries how the hand is held: the paper's recordings hold each gesture at its own
+    pitch (grab ~45° up, thumbs-up ~7°), and a model learns the pitch with the pose. Measured
+    against `palm_axis` instead, the ten proximal features are bends alone. Devices without
+    metacarpals (the HGR set) stand one in along the hand direction (`mmhgr.features57`).
+    """
+    x = np.atleast_2d(np.asarray(x57, dtype=np.float64))
+    out = derive(x)
+    axis = palm_axis(x)
+    for f in range(5):
+        out[:, 6 * f:6 * f + 2] -= axis
+        out[:, 6 * f + 1] = wrap(out[:, 6 * f + 1])
+    return out[0] if np.ndim(x57) == 1 else out
+
+
+def transform(x57: np.ndarray, name: str) -> np.ndarray:
+    """Returns the derived features of a feature set named in `TRANSFORMS`."""
+    return derive_palm(x57) if name == TRANSFORM_PALM else derive(x57)
 
 
 def augment(x57: np.ndarray, rng: np.random.Generator, size: tuple[float, float] = (0.85, 1.15),

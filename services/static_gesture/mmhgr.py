@@ -17,11 +17,13 @@ Rules:
 - The four points of a finger are the joints of its last three bones: proximal.prev (``mcp``),
   intermediate.prev (``pip``), distal.prev (``dip``), distal.next (``tip``). For the thumb too:
   its metacarpal has zero length in the Leap model, so ``mcp`` is where its proximal starts.
-- `hand_dicts` turns rows into contract hands (``docs/protocol.md``) with a ZERO-LENGTH
-  metacarpal at ``mcp`` for every finger and no rotation: the device-independent features of
-  ``cbgo.services.static_gesture.invariant`` never look at metacarpals or the wrist, so the
-  missing parts cannot leak into them (the wrist is put 60 mm behind the palm to keep the
-  dict complete; nothing reads it).
+- `hand_dicts` turns rows into contract hands (``docs/protocol.md``) with stand-in
+  metacarpals and no rotation: the thumb's has ZERO LENGTH at ``mcp`` (as in the Leap model),
+  the other fingers' end at ``mcp`` and lie along the hand direction (`METACARPAL_MM` long).
+  The device-independent features of ``cbgo.services.static_gesture.invariant`` read those
+  four only through their mean, as the palm's axis (the real ones fan out a little about it);
+  nothing reads the thumb's metacarpal or the wrist (put 60 mm behind the palm to keep the
+  dict complete).
 - `POSE_MAP` maps the dataset's poses to cbgo's static vocabulary (``STATIC_GESTURES``):
   ``fist_moved`` → grab, ``index`` → point, ``two``, ``three``, ``four``, ``five`` → the same,
   ``up`` (thumb up, fist) → thumbsup. Every other pose is unknown to cbgo (`UNKNOWN_POSES`).
@@ -65,6 +67,7 @@ _NUM = r"([-+0-9.eE]+)"
 _VEC = re.compile(r"<(\w+) type_id=\"opencv-matrix\">.*?<data>\s*" + r"\s+".join([_NUM] * 3)
                   + r"\s*</data>", re.S)
 _SCALAR = re.compile(r"<(Confidence|PinchStrength|GrabStrength|isExtended)>\s*([-+0-9.eE]+)\s*<")
+METACARPAL_MM = 50.0  # length of the stand-in metacarpals of index..pinky (only its axis counts)
 _FILE = re.compile(r"user_(\d+)/(train_pose|test_pose)/(\w+)/frame_(\d+)\.xml$")
 
 
@@ -197,7 +200,8 @@ def hand_dicts(frames: Frames, joints: np.ndarray | None = None,
                direction: np.ndarray | None = None) -> list[dict]:
     """Returns contract hands of the rows (geometry overridable, e.g. by an augmentation).
 
-    Every finger gets a zero-length metacarpal at ``mcp`` (see the module docstring).
+    The thumb gets a zero-length metacarpal at ``mcp``, the other fingers one of
+    `METACARPAL_MM` ending at ``mcp`` along the hand direction (see the module docstring).
     """
     joints = frames.joints if joints is None else joints
     palm = frames.palm if palm is None else palm
@@ -210,7 +214,8 @@ def hand_dicts(frames: Frames, joints: np.ndarray | None = None,
         p = np.asarray(palm[n], dtype=np.float64)
         fingers = []
         for f, ftype in enumerate(FINGER_TYPES):
-            points = [j[f][0], *j[f]]  # zero-length metacarpal at mcp
+            base = j[f][0] if f == 0 else (np.asarray(j[f][0]) - METACARPAL_MM * d).tolist()
+            points = [base, *j[f]]
             fingers.append({"type": ftype, "bones": [
                 {"type": b, "prev_joint": points[k], "next_joint": points[k + 1], "width": 15.0}
                 for k, b in enumerate(BONE_TYPES)]})
@@ -292,7 +297,11 @@ def features57(frames: Frames, rotation: np.ndarray | None = None) -> np.ndarray
         direction = np.einsum("nij,nj->ni", rotation, direction)
     mcp, pip, dip, tip = (joints[:, :, k] for k in range(4))
     proximal = F.unit(np, mcp - pip)  # recording convention: tip to base
-    bone_dirs = np.stack([proximal, proximal, F.unit(np, pip - dip), F.unit(np, dip - tip)], 2)
+    # The stand-in metacarpals (`hand_dicts`): the thumb's has zero length and borrows its
+    # proximal; the others lie along the hand direction, so tip to base is −direction.
+    metacarpal = np.concatenate([proximal[:, :1], np.repeat(-direction[:, None], 4, 1)], 1)
+    bone_dirs = np.stack([metacarpal, proximal, F.unit(np, pip - dip), F.unit(np, dip - tip)],
+                         2)
     x = F.features_from_geometry(np, palm, palm - 60.0 * direction, direction, bone_dirs, tip)
     other = frames.side != F.RECORDED_SIDE
     x[other] = F.mirror_features(x[other])

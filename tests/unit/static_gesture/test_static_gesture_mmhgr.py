@@ -102,6 +102,33 @@ def test_derived_features_ignore_the_2pi_jumps_of_the_57():
     assert invariant.derive(x).shape == (20, invariant.N_DERIVED)
 
 
+def test_the_palm_axis_features_keep_a_fingers_bend_whatever_the_hands_pitch():
+    # The same pose held 25° higher or lower: the proximal features of `derive` move by about
+    # twice that (they carry the hand's pitch), those against the palm axis stay put.
+    shape = HandShape.sample(np.random.default_rng(3), side="left")
+    pose = gesture_pose("two", np.random.default_rng(4))
+    x = F.hands_features([build_hand(shape, pose.rotated(pitch=np.deg2rad(a)),
+                                     np.array([0.0, 200.0, 10.0])) for a in (-25, 0, 25)])
+    proximal_pitch = np.arange(0, 30, 6)
+    moved = np.ptp(invariant.derive(x)[:, proximal_pitch], axis=0)
+    kept = np.ptp(invariant.derive_palm(x)[:, proximal_pitch], axis=0)
+    assert moved.min() > np.deg2rad(60) and kept.max() < np.deg2rad(8)
+
+
+def test_a_converted_frame_reads_its_palm_axis_from_the_hand_direction(tmp_path):
+    # The HGR set has no metacarpals: the stand-ins along the hand direction give the palm
+    # axis of the original hand to within the fan of its real metacarpals.
+    hands = write_dataset(tmp_path / "src", people=(1,), poses=("five", "up"), per_pose=2)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    originals = [hands[(int(u), str(p), int(f))] for u, p, f in
+                 zip(frames.user, frames.pose, frames.frame, strict=True)]
+    axis = invariant.palm_axis(mmhgr.features57(frames))
+    want = invariant.palm_axis(F.hands_features(originals, to_recorded_side=True))
+    assert axis[:, 0] == pytest.approx(want[:, 0], abs=0.1)
+    assert np.abs(invariant.wrap(axis[:, 1] - want[:, 1])).max() < 0.1
+
+
 def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp_path):
     write_dataset(tmp_path / "src", people=(1, 2, 3, 4),
                   poses=("fist_moved", "five", "up", "ok", "C"), per_pose=2)
@@ -116,4 +143,5 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert set(fig["per_person"]) == {1, 2, 3, 4}
     assert set(fig["rejection"]) <= {"ok", "C"} and fig["rejection_n"] > 0
     assert sum(b["n"] for b in fig["by_confidence"]) == fig["n"]
+    assert set(fig["pitched"]) == {"-30.0", "30.0"}
     crossval.print_figures(fig)
