@@ -141,6 +141,13 @@ class Posterior:
         self._first = np.ascontiguousarray(w.transpose(1, 0, 2).reshape(w.shape[1], -1))
         self._first_bias = self.biases[0].reshape(-1)
 
+    def hidden(self, x: np.ndarray) -> np.ndarray:
+        """Returns (N, H) first-layer activations averaged over the drawn networks."""
+        x = np.asarray(x, dtype=np.float64)
+        samples = len(self.weights[0])
+        h = (x @ self._first + self._first_bias).reshape(len(x), samples, -1)
+        return (np.tanh(h) if self.activation == "tanh" else np.maximum(h, 0.0)).mean(1)
+
     def predict(self, x: np.ndarray) -> np.ndarray:
         """Returns (N, C) probabilities: the softmax averaged over the drawn networks."""
         x = np.asarray(x, dtype=np.float64)
@@ -229,9 +236,14 @@ class StaticClassifier:
         x = np.atleast_2d(np.asarray(features, dtype=np.float64))
         if len(x) == 0:
             return np.zeros((0, len(self.names)))
+        return self.posterior.predict(self.network_inputs(x))
+
+    def network_inputs(self, features: np.ndarray) -> np.ndarray:
+        """Returns what the network reads for (N, 57) features: derived, selected, standardised."""
+        x = np.atleast_2d(np.asarray(features, dtype=np.float64))
         if self.transform in invariant.TRANSFORMS:
             x = invariant.transform(x, self.transform)
-        return self.posterior.predict((x[:, self.inputs] - self.mean) / self.std)
+        return (x[:, self.inputs] - self.mean) / self.std
 
     def classify_hands(self, hands: list[dict]) -> np.ndarray:
         """Returns (N, C) probabilities for contract hands (both sides; one batch)."""

@@ -15,8 +15,9 @@ counts as rejected when the model answers ``none`` or its top probability is bel
 
 Figures: per-class recall and balanced accuracy of the gestures (a ``none`` answer is wrong),
 per-person accuracy, the confusion, rejection per held-out pose, accuracy by the tracker's
-confidence (the frame's ``Confidence``), and frame accuracy with the held-out hands pitched by
-±30° about the palm (`PITCHED_DEG`).
+confidence (the frame's ``Confidence``), frame accuracy with the held-out hands pitched by
+±30° about the palm (`PITCHED_DEG`), and what the open-set rule of `openset` (calibrated on each
+fold's training rows) would add to the rejection and cost the known gestures.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from dataclasses import replace
 import numpy as np
 
 from cbgo.hands.data import load_real_features
-from cbgo.services.static_gesture import mmhgr, train
+from cbgo.services.static_gesture import mmhgr, openset, train
 from cbgo.services.static_gesture.classifier import NONE
 from cbgo.wire import STATIC_GESTURES
 
@@ -83,9 +84,13 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
         clf = train.classifier_of(train.fit(data, replace(options, seed=options.seed + k)),
                                   samples)
         sub = frames.subset(test)
-        probs = clf.predict_features(mmhgr.features57(sub))
+        x_test = mmhgr.features57(sub)
+        probs = clf.predict_features(x_test)
+        open_set = openset.OpenSet.fit(clf, data.x, data.y, data.names,
+                                       np.random.default_rng([seed, k]))
         parts.append({"frames": sub, "pred": np.array(clf.names)[probs.argmax(1)],
                       "top": probs.max(1), "held_unknown": np.isin(sub.pose, held_out),
+                      "novel": open_set.novel(clf, x_test),
                       "pitched": {deg: np.array(clf.names)[clf.predict_features(
                           mmhgr.features57(sub, pitch_rotations(len(sub), deg))).argmax(1)]
                           for deg in PITCHED_DEG}})
@@ -139,10 +144,15 @@ def summarise(parts: list[dict]) -> dict:
         sel = known & (conf >= lo) & (conf < hi)
         by_conf.append({"lo": lo, "hi": min(hi, 1.0), "n": int(sel.sum()),
                         "accuracy": float(correct[sel].mean()) if sel.any() else None})
+    novel = np.concatenate([p["novel"] for p in parts]) if "novel" in parts[0] else None
+    open_set = None if novel is None else {
+        "quantile": openset.QUANTILE, "rejection_overall": float((rejected | novel)[held].mean()),
+        "accuracy": float((correct & ~novel)[known].mean()),
+        "rejection_seen_overall": float((rejected | novel)[seen].mean()) if seen.any() else None}
     pitched = {str(deg): float((np.concatenate([p["pitched"][deg] for p in parts]) == label)[
         known].mean()) for deg in (parts[0].get("pitched") or {})}
     return {"classes": classes, "recall": recall, "balanced_accuracy": float(np.mean(recall)),
-            "pitched": pitched,
+            "pitched": pitched, "open_set": open_set,
             "accuracy": float(correct[known].mean()), "n": int(known.sum()),
             "per_person": per_person, "per_style": per_style, "confusion": confusion,
             "names": names,
@@ -193,6 +203,13 @@ def print_figures(fig: dict) -> None:
         print(f"  the same poses where other people's took part in training: "
               f"{fig['rejection_seen_overall']:.1%} rejected; " + ", ".join(
                   f"{p} {r:.1%}" for p, r in fig["rejection_seen"].items()))
+    if fig.get("open_set"):
+        o = fig["open_set"]
+        print(f"  with the open-set rule too (`openset`: far from every training gesture in the "
+              f"hidden layer, threshold at the training frames' {o['quantile']:.0%} quantile; "
+              f"not applied by the service): unknown poses held out {o['rejection_overall']:.1%}"
+              f" rejected, seen ones {o['rejection_seen_overall']:.1%}; known gestures right and"
+              f" not rejected {o['accuracy']:.2%}")
     if fig.get("pitched"):
         print("  the same frames with the hand pitched about the palm: " + ", ".join(
             f"{float(d):+.0f}° {a:.2%}" for d, a in fig["pitched"].items()))

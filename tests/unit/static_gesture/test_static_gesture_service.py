@@ -119,7 +119,7 @@ def test_the_shipped_model_metadata_is_complete():
     assert meta["feature_version"] == F.FEATURE_VERSION
     # the device-independent features, derived from the 57 (no wrist, metacarpal or thumb-
     # metacarpal convention)
-    assert meta["transform"] == invariant.TRANSFORM
+    assert meta["transform"] == invariant.TRANSFORM_PALM
     assert meta["inputs"] == list(range(invariant.N_DERIVED))
     assert meta["feature_names"] == list(invariant.NAMES)
     assert len(meta["standardizer"]["mean"]) == len(meta["standardizer"]["std"]) == 45
