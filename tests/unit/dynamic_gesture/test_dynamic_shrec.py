@@ -123,3 +123,5 @@ def test_leave_people_out_scores_each_person_with_a_library_learned_without_them
     confusion = np.asarray(block["confusion"])
     assert confusion.sum() == 4 and confusion[:4].sum() == 4  # every recording scored once
     assert set(block["recall"]) == set(shrec.SWIPE_DIRECTIONS)
+    finals = np.asarray(block["confusion_finals"])  # answered by final windows only
+    assert finals.sum() == 4 and set(block["recall_finals"]) == set(shrec.SWIPE_DIRECTIONS)

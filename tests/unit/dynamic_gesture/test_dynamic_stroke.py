@@ -206,6 +206,22 @@ def test_a_much_faster_move_back_after_an_unsure_gesture_is_reported(synth):
     assert not any(w.final and w.obs[-1, 1] > 140 for w in kept)
 
 
+def test_a_move_back_much_farther_than_a_sure_gesture_is_reported_one_as_far_is_its_return(
+        synth):
+    # A quick 60 mm preparation down, taken for a sure swipe down, then the 160 mm swipe up at
+    # the same pace: it goes farther than twice the preparation, so it is the gesture.
+    traj = synth.trajectory([REST, ("move", 0.2, (0, -60, 0)), ("hold", 0.3),
+                             ("move", 0.45, (0, 160, 0)), ("hold", 0.5)])
+    windows = synth.feed(Segmenter(), traj)
+    kept = reported_windows(windows, classify=lambda w: 0.95)
+    assert any(w.final and w.obs[-1, 1] > 140 for w in kept)
+    # a move back as far as the swipe, as fast, after a sure swipe: its return
+    traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.3), ("move", 0.45, (0, -160, 0)),
+                             ("hold", 0.5)])
+    kept = reported_windows(synth.feed(Segmenter(), traj), classify=lambda w: 0.95)
+    assert [w.stroke for w in kept if w.final] == [1]
+
+
 def test_a_stroke_cut_short_by_the_hand_leaving_after_a_gesture_is_its_return(synth):
     segmenter = Segmenter()
     traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.3), ("move", 0.2, (0, -160, 0))])
