@@ -41,6 +41,9 @@ from cbgo.wire import BONE_TYPES, FINGER_TYPES, SCHEMA_VERSION
 
 SWIPES = ("swipe_right", "swipe_left", "swipe_up", "swipe_down")
 NOT_SCORED = ("turn_clockwise", "turn_counter_clockwise")
+# Moves along one direction with another hand shape (an opening hand) or a curved path: no
+# swipe of the set, yet swipe-shaped, so they are reported apart (and kept out of streams).
+SWIPE_LIKE = ("open_hand_", "C_swipe_")
 JOINTS = ("carpPosition", "mcpPosition", "pipPosition", "dipPosition", "btipPosition")
 
 

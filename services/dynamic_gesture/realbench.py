@@ -36,6 +36,7 @@ Examples::
 from __future__ import annotations
 
 import json
+import math
 import tempfile
 import threading
 import time
@@ -55,6 +56,7 @@ from cbgo.wire import DYNAMIC_GESTURES
 OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture of ours
 NOTHING = "nothing"
 MOVE_S, MOVE_MM_S, HOLD_S, LEAVE_S = 0.6, 100.0, 0.4, 0.6
+TURN_DEG_S = 45.0  # how fast the hand turns between two recordings of a stream (a slow turn)
 
 
 @dataclass(frozen=True)
@@ -230,14 +232,86 @@ def run_trials(player: _Player, trials: list[Trial], device: str, log=print) -> 
     return {"trials": rows}
 
 
-def run_stream(player: _Player, sequences: list[shrec.Sequence]) -> dict:
-    """Plays one continuous stream; returns swipe recall and false triggers."""
+def shrec_stream(sequences: list[shrec.Sequence]) -> tuple[list[tuple], list[tuple]]:
+    """Returns SHREC'17 sequences as one stream: (time, hands) frames and (name, t0, t1) spans."""
     joints, spans = stream_joints(sequences)
+    hands = shrec.to_hands(joints)
+    return [(i / shrec.RATE_HZ, [hand]) for i, hand in enumerate(hands)], spans
+
+
+def _unit(v) -> list[float]:
+    v = np.asarray(v, dtype=float)
+    return (v / max(float(np.linalg.norm(v)), 1e-9)).tolist()
+
+
+def blend_hands(a: dict, b: dict, s: float) -> dict:
+    """Returns hand `a` taken a fraction `s` of the way to hand `b`.
+
+    Positions and joints move in a straight line, the palm normal and direction turn
+    (normalised interpolation), grab and pinch change linearly; the id is `a`'s.
+    """
+    def lerp(x, y):
+        return (np.asarray(x, dtype=float) * (1 - s) + np.asarray(y, dtype=float) * s).tolist()
+
+    fingers = [{"type": fa["type"], "bones": [
+        {**ba, "prev_joint": lerp(ba["prev_joint"], bb["prev_joint"]),
+         "next_joint": lerp(ba["next_joint"], bb["next_joint"])}
+        for ba, bb in zip(fa["bones"], fb["bones"], strict=True)]}
+        for fa, fb in zip(a["fingers"], b["fingers"], strict=True)]
+    return {**a, "palm_position": lerp(a["palm_position"], b["palm_position"]),
+            "wrist_position": lerp(a["wrist_position"], b["wrist_position"]),
+            "palm_velocity": lerp(a["palm_velocity"], b["palm_velocity"]),
+            "palm_normal": _unit(lerp(a["palm_normal"], b["palm_normal"])),
+            "direction": _unit(lerp(a["direction"], b["direction"])),
+            "grab_strength": float(lerp(a["grab_strength"], b["grab_strength"])),
+            "pinch_strength": float(lerp(a["pinch_strength"], b["pinch_strength"])),
+            "fingers": fingers}
+
+
+def _main_hand(frames: list[tuple[float, list[dict]]]) -> list[tuple[float, dict]]:
+    """Returns (time, hand) of the recording's most seen hand, in the frames that have it."""
+    ids = [h["id"] for _, hands in frames for h in hands]
+    main = max(set(ids), key=ids.count)
+    return [(t, h) for t, hands in frames for h in hands if h["id"] == main]
+
+
+def trials_stream(trials: list[Trial], rate_hz: float = 60.0
+                  ) -> tuple[list[tuple], list[tuple]]:
+    """Returns recordings played back to back as one stream: frames and (name, t0, t1) spans.
+
+    Each recording's most seen hand, one tracking id for all: between two recordings the hand
+    moves (`blend_hands`, minimum jerk) from where one ended to where the next begins, at
+    `MOVE_MM_S` on average and turning at most `TURN_DEG_S`, at least `MOVE_S`, then holds
+    still for `HOLD_S`: it never leaves the field. A span's name is the trial's truth.
+    """
+    frames, spans, t = [], [], 0.0
+    for trial in trials:
+        hands = _main_hand(trial.frames())
+        if frames:
+            a, b = frames[-1][1][0], hands[0][1]
+            distance = float(np.linalg.norm(np.subtract(a["palm_position"], b["palm_position"])))
+            turn = math.degrees(math.acos(float(np.clip(np.dot(a["palm_normal"],
+                                                                b["palm_normal"]), -1, 1))))
+            n = int(max(MOVE_S, distance / MOVE_MM_S, turn / TURN_DEG_S) * rate_hz)
+            for i in range(1, n + 1):
+                s = i / n
+                frames.append((t + i / rate_hz, [blend_hands(a, b, s**3 * (10 - 15 * s
+                                                                             + 6 * s**2))]))
+            hold = int(HOLD_S * rate_hz)
+            frames += [(t + (n + i) / rate_hz, [b]) for i in range(1, hold + 1)]
+            t += (n + hold + 1) / rate_hz
+        t_first = hands[0][0]
+        frames += [(t + tt - t_first, [hand]) for tt, hand in hands]
+        spans.append((trial.truth, t, frames[-1][0]))
+        t = frames[-1][0] + 1.0 / rate_hz
+    return [(tt, [{**h, "id": 1} for h in hs]) for tt, hs in frames], spans
+
+
+def run_stream(player: _Player, frames: list[tuple], spans: list[tuple], device: str) -> dict:
+    """Plays one continuous stream; returns swipe recall and false triggers."""
     with player.lock:
         first = len(player.dynamic)
-    hands = shrec.to_hands(joints)
-    t0, t1 = player.play([(i / shrec.RATE_HZ, [hand]) for i, hand in enumerate(hands)],
-                         "shrec17")
+    t0, t1 = player.play(frames, device)
     time.sleep(0.5)
     with player.lock:
         messages = [m for _, m in player.dynamic[first:]]
@@ -320,6 +394,29 @@ def real_trials(root: Path, split: str) -> tuple[str, list[Trial], list[shrec.Se
                       if r.gesture not in leapjs.NOT_SCORED], []
 
 
+def stream_sets(device: str, trials: list[Trial], sequences: list[shrec.Sequence],
+                streams: int, seed: int) -> list[tuple[list[tuple], list[tuple]]]:
+    """Returns `streams` continuous streams, one person each, of 10 recordings in random order.
+
+    SHREC'17: its swipes and other gestures (`stream_joints`). LeapJS: its swipes and the
+    gestures that are no swipe (tap, pinch, thumbs), not the moves along one direction with
+    another hand shape or path (`leapjs.SWIPE_LIKE`), whose truth is neither.
+    """
+    rng = np.random.default_rng(seed)
+    people = sorted({t.person for t in trials})
+    out = []
+    for person in rng.choice(people, min(streams, len(people)), replace=False) if people else []:
+        if device == "shrec17":
+            own = [s for s in sequences if str(s.person) == person
+                   and (s.gesture in shrec.SWIPES or s.gesture in OTHER)]
+            out.append(shrec_stream([own[i] for i in rng.permutation(len(own))[:10]]))
+        else:
+            own = [t for t in trials if t.person == person
+                   and not t.gesture.startswith(leapjs.SWIPE_LIKE)]
+            out.append(trials_stream([own[i] for i in rng.permutation(len(own))[:10]]))
+    return out
+
+
 def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
              json_path: Path | None, log=print) -> int:
     """The whole real-data bench (see the module docstring)."""
@@ -330,13 +427,7 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
         log("note: the test split's people are reserved for acceptance checks; never tune on "
             "these figures")
     trials = pick_trials(all_trials, per_class, seed)
-    people = sorted({s.person for s in sequences})
-    rng = np.random.default_rng(seed + 1)
-    stream_sets = []
-    for person in rng.choice(people, min(streams, len(people)), replace=False) if people else []:
-        own = [s for s in sequences if s.person == person
-               and (s.gesture in shrec.SWIPES or s.gesture in OTHER)]
-        stream_sets.append([own[i] for i in rng.permutation(len(own))[:10]])
+    streams_played = stream_sets(device, all_trials, sequences, streams, seed + 1)
     with tempfile.TemporaryDirectory() as tmp, Stack(Path(tmp)) as stack:
         stack.start_router()
         for name in ("dynamic-gesture", "episode"):
@@ -347,7 +438,7 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
         log(f"{len(trials)} trials of {device}"
             + (f"'s {split} split" if device == "shrec17" else "") + ", real time")
         result = run_trials(player, trials, device, log)
-        result["streams"] = [run_stream(player, s) for s in stream_sets]
+        result["streams"] = [run_stream(player, *stream, device) for stream in streams_played]
         result["latency_ms"] = latencies(player)
     for field in ("dynamic", "summary"):
         result[field] = score(result["trials"], field)

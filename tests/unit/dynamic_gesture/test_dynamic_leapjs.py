@@ -113,3 +113,32 @@ def test_a_trial_plays_its_frames_at_their_recorded_times(dataset):
     frames = realbench.leapjs_trial(rec).frames()
     assert len(frames) == len(rec.frames())
     assert frames[-1][0] == pytest.approx((len(frames) - 1) / 115.0, abs=1e-5)
+
+
+def test_a_stream_plays_recordings_back_to_back_with_the_hand_never_leaving(dataset):
+    trials = [realbench.leapjs_trial(r) for r in leapjs.read_set(dataset)]
+    frames, spans = realbench.trials_stream(trials)
+    assert [name for name, _, _ in spans] == [t.truth for t in trials]
+    times = [t for t, _ in frames]
+    assert all(b > a for a, b in zip(times, times[1:], strict=False))  # one clock, forward
+    assert all(len(hands) == 1 and hands[0]["id"] == 1 for _, hands in frames)
+    steps = [np.linalg.norm(np.subtract(b[1][0]["palm_position"], a[1][0]["palm_position"]))
+             for a, b in zip(frames, frames[1:], strict=False)]
+    assert max(steps) < 20.0  # no jump between recordings: the hand moves there
+    for (_, _, a1), (_, b0, _) in zip(spans, spans[1:], strict=False):
+        assert b0 - a1 >= realbench.MOVE_S + realbench.HOLD_S
+    for _, hands in frames[::40]:
+        msg = keys.HANDS_FRAME.message(ts=1.0, seq=0, source="replay", device="leapjs",
+                                       hands=hands)
+        wire.validate(msg, wire.schema_for(keys.HANDS_FRAME.suffix))
+
+
+def test_a_blended_hand_turns_with_unit_vectors_half_way():
+    a, pa = leapjs_hand([0.0, 200.0, 0.0])
+    b, pb = leapjs_hand([100.0, 200.0, 0.0])
+    b["palmNormal"] = [1.0, 0.0, 0.0]
+    ha, hb = leapjs.to_hand(a, pa), leapjs.to_hand(b, pb)
+    mid = realbench.blend_hands(ha, hb, 0.5)
+    assert np.allclose(mid["palm_position"], [50.0, 200.0, 0.0])
+    assert np.isclose(np.linalg.norm(mid["palm_normal"]), 1.0)
+    assert np.allclose(mid["palm_normal"], np.array([1.0, -1.0, 0.0]) / np.sqrt(2))
