@@ -403,11 +403,14 @@ def stream_sets(device: str, trials: list[Trial], sequences: list[shrec.Sequence
     another hand shape or path (`leapjs.SWIPE_LIKE`), whose truth is neither.
     """
     rng = np.random.default_rng(seed)
-    people = sorted({t.person for t in trials})
+    if device == "shrec17":
+        people = sorted({s.person for s in sequences})
+    else:
+        people = sorted({t.person for t in trials})
     out = []
     for person in rng.choice(people, min(streams, len(people)), replace=False) if people else []:
         if device == "shrec17":
-            own = [s for s in sequences if str(s.person) == person
+            own = [s for s in sequences if s.person == person
                    and (s.gesture in shrec.SWIPES or s.gesture in OTHER)]
             out.append(shrec_stream([own[i] for i in rng.permutation(len(own))[:10]]))
         else:
