@@ -47,7 +47,14 @@ import numpy as np
 
 from cbgo import keys, metrics, wire
 from cbgo.services.dynamic_gesture import leapjs, shrec, simdata
-from cbgo.services.dynamic_gesture.stroke import GESTURE_P, ReturnFilter, Segmenter, reported
+from cbgo.services.dynamic_gesture.stroke import (
+    GESTURE_P,
+    REVERSE_MIN_MM,
+    ReturnFilter,
+    Segmenter,
+    reported,
+    reverses,
+)
 from cbgo.simuser.motion import CENTRE_MM
 from cbgo.simuser.scenario import IDLE_MOTIONS, Episode, GestureStep, Scenario
 from cbgo.simuser.user import SimulatedUser
@@ -473,7 +480,7 @@ def _print_score(field: str, block: dict) -> None:
 
 
 HABITS = ("length_mm", "roll_deg", "start_along", "duration_s", "peak_mm_s", "bow", "returned",
-          "return_speed_ratio")
+          "return_speed_ratio", "return_length_ratio", "over_preparation")
 
 
 def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: float
@@ -484,7 +491,10 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
     over it, where it started along its direction relative to `middle` (the recording's median
     palm position) in units of its length, its duration and peak speed, its bow (largest
     sideways deviation / length), and whether a stroke followed it within 1.5 s (a return)
-    and that stroke's peak speed relative to it.
+    and that stroke's peak speed relative to it; when that stroke reverses it (`reverses`),
+    how far it went relative to the swipe, and when a stroke within 1.5 s before the swipe
+    reverses it (a preparation), how much farther the swipe went: what `ReturnFilter.farther`
+    is chosen on.
     """
     finals = [(w, t) for w, t in zip(windows, truths, strict=True) if w.final]
     out = []
@@ -496,14 +506,33 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
         length = max(float(xyz[-1] @ d), 1.0)
         start = w.origin if w.origin is not None else middle
         after = [v for v, _ in finals[i + 1:] if v.t_start - w.t_end <= 1.5]
+        before = [v for v, _ in finals[:i] if w.t_start - v.t_end <= 1.5][-1:]
         out.append({"length_mm": length, "roll_deg": float(np.degrees(w.obs[-1, 3] / roll_scale)),
                     "start_along": float((start - middle) @ d / length),
                     "duration_s": w.t_end - w.t_start, "peak_mm_s": w.peak_speed,
                     "bow": float(np.abs(xyz - np.outer(xyz @ d, d)).max() / length),
                     "returned": float(bool(after)),
                     "return_speed_ratio": (after[0].peak_speed / max(w.peak_speed, 1.0)
-                                           if after else np.nan)})
+                                           if after else np.nan),
+                    "return_length_ratio": _length_ratio(after[:1], w),
+                    "over_preparation": 1.0 / _length_ratio(before, w)})
     return out
+
+
+def _length_ratio(other: list, swipe) -> float:
+    """How far `other` (a one-window list) went in space relative to `swipe`, if it reverses it.
+
+    NaN when there is no such window, or it does not reverse the swipe (`stroke.reverses`:
+    the cosine of their displacements below -0.5), or it moved less than `REVERSE_MIN_MM`.
+    """
+    if not other:
+        return np.nan
+    a = other[0].obs[-1] - other[0].obs[0]
+    b = swipe.obs[-1] - swipe.obs[0]
+    length = float(np.linalg.norm(a[:3]))
+    if length < REVERSE_MIN_MM or not reverses(a[:3], b[:3], -0.5):
+        return np.nan
+    return length / max(float(np.linalg.norm(b[:3])), 1.0)
 
 
 def real_habits(root: Path, split: str, config) -> list[dict]:
