@@ -35,6 +35,7 @@ Examples::
 
     cbgo bench dynamic
     cbgo bench dynamic --real ~/.cache/cbgo/shrec17/datasetShrec
+    cbgo bench dynamic --real ~/.cache/cbgo/guinevere --per-class 0   # real Leap recordings
     cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec
     cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
     cbgo bench dynamic --ranges train          # held-out users inside the training range
