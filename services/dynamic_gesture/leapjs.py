@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,12 +44,6 @@ NOT_SCORED = ("turn_clockwise", "turn_counter_clockwise")
 # swipe of the set, yet swipe-shaped, so they are reported apart (and kept out of streams).
 SWIPE_LIKE = ("open_hand_", "C_swipe_")
 JOINTS = ("carpPosition", "mcpPosition", "pipPosition", "dipPosition", "btipPosition")
-
-
-def default_root() -> Path:
-    """Returns where the data set is looked for: ``CBGO_LEAPJS_DIR`` or the user cache."""
-    env = os.environ.get("CBGO_LEAPJS_DIR")
-    return Path(env) if env else Path.home() / ".cache/cbgo/guinevere"
 
 
 @dataclass(frozen=True)
