@@ -7,7 +7,7 @@ repository ``sluyters/QuantumLeap``, folder ``backend/src/datasets/dynamic/guine
 swipes in the four directions with the palm or the index finger, palm rotations and hand
 gestures that are no swipe (tap, pinch, thumbs, hand opening). It has no licence file, so
 nothing of it is committed: copy that folder into a cache (``~/.cache/cbgo/guinevere``) and
-point ``cbgo bench dynamic --leapjs DIR`` at it. It is used for **evaluation only**: nothing
+point ``cbgo bench dynamic --real DIR`` at it. It is used for **evaluation only**: nothing
 is fitted, tuned or selected on it.
 
 Conversion (every assumption written down):
@@ -64,14 +64,9 @@ class Recording:
     take: int
     path: Path
 
-    @property
-    def name(self) -> str:
-        """The truth for scoring: the swipe's name, or the data set's gesture name."""
-        return self.gesture
-
-    def frames(self, hand_id: int | None = None) -> list[dict]:
+    def frames(self) -> list[dict]:
         """Returns the recording as ``cbgo/hands/frame`` messages (see the module docstring)."""
-        return to_frames(json.loads(self.path.read_text()), hand_id)
+        return to_frames(json.loads(self.path.read_text()))
 
 
 def read_set(root: Path) -> list[Recording]:
@@ -114,7 +109,7 @@ def _fingers(pointables: list[dict]) -> list[dict]:
     return fingers
 
 
-def to_hand(hand: dict, pointables: list[dict], hand_id: int | None = None) -> dict:
+def to_hand(hand: dict, pointables: list[dict]) -> dict:
     """Returns one contract hand from a LeapJS hand and its pointables.
 
     Raises:
@@ -122,7 +117,7 @@ def to_hand(hand: dict, pointables: list[dict], hand_id: int | None = None) -> d
     """
     own = [p for p in pointables if p.get("handId") == hand["id"]]
     return {
-        "id": int(hand["id"]) if hand_id is None else hand_id,
+        "id": int(hand["id"]),
         "side": "left" if hand["type"] == "left" else "right",
         "confidence": min(max(float(hand.get("confidence", 1.0)), 0.0), 1.0),
         "palm_position": _vec(hand["palmPosition"]),
@@ -134,18 +129,13 @@ def to_hand(hand: dict, pointables: list[dict], hand_id: int | None = None) -> d
         "fingers": _fingers(own)}
 
 
-def to_frames(recording: dict, hand_id: int | None = None) -> list[dict]:
-    """Returns a LeapJS recording (``{"data": [frame, ...]}``) as hands/frame messages.
-
-    Args:
-        recording: the parsed JSON.
-        hand_id: report every hand with this tracking id (None: the recording's ids).
-    """
+def to_frames(recording: dict) -> list[dict]:
+    """Returns a parsed LeapJS recording (``{"data": [frame, ...]}``) as hands/frame messages."""
     frames = recording["data"]
     t0 = float(frames[0]["timestamp"]) if frames else 0.0
     out = []
     for i, frame in enumerate(frames):
-        hands = [to_hand(h, frame.get("pointables", []), hand_id) for h in frame["hands"]]
+        hands = [to_hand(h, frame.get("pointables", [])) for h in frame["hands"]]
         out.append({"v": SCHEMA_VERSION, "ts": (float(frame["timestamp"]) - t0) / 1e6,
                     "seq": i, "source": "replay", "device": "leapjs", "hands": hands})
     return out

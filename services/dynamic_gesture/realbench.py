@@ -14,9 +14,10 @@ Guinevere set, ~115 Hz; a folder of person folders of ``NAME-TAKE.json``). Print
   balanced accuracy over the four swipes. The other gestures of the data set (grab, tap,
   pinch, expand, shake) are played too: any swipe or rotate reported for them is a false
   trigger.
-- **Continuous streams** (SHREC'17 only: they are built from its joints): per person, several
-  sequences one after the other without the hand leaving (a slow 0.6 s move from the end of
-  one to the start of the next, then a 0.4 s hold).
+- **Continuous streams**: per person, several recordings one after the other without the
+  hand leaving (a slow move, at least 0.6 s, from the end of one to the start of the next,
+  then a 0.4 s hold; SHREC'17 from its joints, `stream_joints`, LeapJS from its hands,
+  `trials_stream`).
   Recall of the swipes, and false triggers per minute of the time outside the swipes (the
   returns, holds, moves and the other gestures): a stroke reported as a gesture (p ≥ 0.5) that
   overlaps no swipe of that name, counted once however many of its windows were reported.
@@ -85,8 +86,7 @@ class Trial:
     def frames(self) -> list[tuple[float, list[dict]]]:
         """Returns (time from the first frame, hands) per recorded frame."""
         if isinstance(self.recording, shrec.Sequence):
-            hands = shrec.to_hands(self.recording.joints())
-            return [(i / shrec.RATE_HZ, [hand]) for i, hand in enumerate(hands)]
+            return shrec_frames(self.recording.joints())
         return [(m["ts"], m["hands"]) for m in self.recording.frames()]
 
 
@@ -242,8 +242,12 @@ def run_trials(player: _Player, trials: list[Trial], device: str, log=print) -> 
 def shrec_stream(sequences: list[shrec.Sequence]) -> tuple[list[tuple], list[tuple]]:
     """Returns SHREC'17 sequences as one stream: (time, hands) frames and (name, t0, t1) spans."""
     joints, spans = stream_joints(sequences)
-    hands = shrec.to_hands(joints)
-    return [(i / shrec.RATE_HZ, [hand]) for i, hand in enumerate(hands)], spans
+    return shrec_frames(joints), spans
+
+
+def shrec_frames(joints: np.ndarray) -> list[tuple[float, list[dict]]]:
+    """Returns (n, 22, 3) SHREC'17 joints as (time, hands) frames at its 30 Hz."""
+    return [(i / shrec.RATE_HZ, [hand]) for i, hand in enumerate(shrec.to_hands(joints))]
 
 
 def _unit(v) -> list[float]:

@@ -155,21 +155,21 @@ def fit(sim_train: list, sim_calib: list, real_people: list) -> Classifier:
     return classifier
 
 
-def trial_answer(classifier: Classifier, windows: list, return_s: float,
-                 finals_only: bool = False) -> str:
-    """Returns what the service reports for one recording: its most probable gesture.
+def trial_answers(classifier: Classifier, windows: list, return_s: float) -> dict[str, str]:
+    """Returns what the service reports for one recording, per rule of `RULES`.
 
-    "nothing" when no reported window has a gesture at p ≥ `stroke.GESTURE_P`. With
-    `finals_only`, only the strokes' final windows count (what a consumer that reads one
-    answer per stroke, ``final`` on the wire, sees).
+    Its most probable gesture among every reported window ("all"), and among the strokes'
+    final windows only ("finals": what a consumer that reads one answer per stroke, ``final``
+    on the wire, sees); "nothing" when no such window has a gesture at p ≥ `stroke.GESTURE_P`.
     """
-    best, best_p = "nothing", 0.0
+    best = {rule: ("nothing", 0.0) for rule in RULES}
     for window, probs in reported(windows, ReturnFilter(return_s), classifier.classify):
         top = int(np.argmax(probs[:-1]))
-        counts = window.final or not finals_only
-        if counts and probs[top] >= GESTURE_P and probs[top] > best_p:
-            best, best_p = classifier.names[top], float(probs[top])
-    return best
+        for rule in RULES:
+            counts = window.final or rule == "all"
+            if counts and probs[top] >= GESTURE_P and probs[top] > best[rule][1]:
+                best[rule] = (classifier.names[top], float(probs[top]))
+    return {rule: name for rule, (name, _) in best.items()}
 
 
 def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: int,
@@ -192,8 +192,7 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
             if seq.person not in held:
                 continue
             other += seq.name not in shrec.SWIPE_DIRECTIONS
-            for rule in RULES:
-                answer = trial_answer(classifier, windows, return_s, rule == "finals")
+            for rule, answer in trial_answers(classifier, windows, return_s).items():
                 if seq.name in shrec.SWIPE_DIRECTIONS:
                     confusion[rule][names.index(seq.name), names.index(answer)] += 1
                 else:
