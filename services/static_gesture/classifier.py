@@ -141,20 +141,24 @@ class Posterior:
         self._first = np.ascontiguousarray(w.transpose(1, 0, 2).reshape(w.shape[1], -1))
         self._first_bias = self.biases[0].reshape(-1)
 
-    def hidden(self, x: np.ndarray) -> np.ndarray:
-        """Returns (N, H) first-layer activations averaged over the drawn networks."""
+    def _first_layer(self, x: np.ndarray) -> np.ndarray:
+        """Returns (S, N, H) first-layer pre-activations of every drawn network."""
         x = np.asarray(x, dtype=np.float64)
         samples = len(self.weights[0])
-        h = (x @ self._first + self._first_bias).reshape(len(x), samples, -1)
-        return (np.tanh(h) if self.activation == "tanh" else np.maximum(h, 0.0)).mean(1)
+        return (x @ self._first + self._first_bias).reshape(len(x), samples, -1).transpose(1, 0, 2)
+
+    def _activate(self, h: np.ndarray) -> np.ndarray:
+        return np.tanh(h) if self.activation == "tanh" else np.maximum(h, 0.0)
+
+    def hidden(self, x: np.ndarray) -> np.ndarray:
+        """Returns (N, H) first-layer activations averaged over the drawn networks."""
+        return self._activate(self._first_layer(x)).mean(0)
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """Returns (N, C) probabilities: the softmax averaged over the drawn networks."""
-        x = np.asarray(x, dtype=np.float64)
-        samples = len(self.weights[0])
-        h = (x @ self._first + self._first_bias).reshape(len(x), samples, -1).transpose(1, 0, 2)
+        h = self._first_layer(x)
         for w, b in zip(self.weights[1:], self.biases[1:], strict=True):
-            h = (np.tanh(h) if self.activation == "tanh" else np.maximum(h, 0.0)) @ w + b
+            h = self._activate(h) @ w + b
         h = h - h.max(-1, keepdims=True)
         np.exp(h, out=h)
         h /= h.sum(-1, keepdims=True)
