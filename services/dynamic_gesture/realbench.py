@@ -18,9 +18,11 @@ Guinevere set, ~115 Hz; a folder of person folders of ``NAME-TAKE.json``). Print
   hand leaving (a slow move, at least 0.6 s, from the end of one to the start of the next,
   then a 0.4 s hold; SHREC'17 from its joints, `stream_joints`, LeapJS from its hands,
   `trials_stream`).
-  Recall of the swipes, and false triggers per minute of the time outside the swipes (the
-  returns, holds, moves and the other gestures): a stroke reported as a gesture (p ≥ 0.5) that
+  Recall of the swipes, and false triggers: a stroke reported as a gesture (p ≥ 0.5) that
   overlaps no swipe of that name, counted once however many of its windows were reported.
+  Those that overlap one of the other gestures (grab, tap, thumbs...) are counted apart; the
+  rest fired on returns, holds and moves, and are given per minute of the time outside every
+  gesture (`stream_figures`).
 - **Latency**: from a stroke's last sample (``window[1]``) to the arrival of its last window.
 
 People: ``--split train`` (the default) are SHREC'17's official train split's people, the only
@@ -65,6 +67,8 @@ OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture 
 NOTHING = "nothing"
 MOVE_S, MOVE_MM_S, HOLD_S, LEAVE_S = 0.6, 100.0, 0.4, 0.6
 TURN_DEG_S = 45.0  # how fast the hand turns between two recordings of a stream (a slow turn)
+STREAM_COUNTS = ("strokes", "recalled", "false_triggers", "other_gesture_triggers",
+                 "other_minutes")
 
 
 @dataclass(frozen=True)
@@ -326,34 +330,47 @@ def run_stream(player: _Player, frames: list[tuple], spans: list[tuple], device:
     time.sleep(0.5)
     with player.lock:
         messages = [m for _, m in player.dynamic[first:]]
-    swipes = [(name, t0 + a, t0 + b) for name, a, b in spans if name in shrec.SWIPES.values()]
+    swipe_names = set(shrec.SWIPES.values())
+    swipes = [(name, t0 + a, t0 + b) for name, a, b in spans if name in swipe_names]
+    others = [(name, t0 + a, t0 + b) for name, a, b in spans if name not in swipe_names]
     reports = [(name, *msg["window"], (msg["hand_id"], msg["window"][0]))
                for name, _, msg in _reported(messages)]
-    return stream_figures(reports, swipes, t1 - t0)
+    return stream_figures(reports, swipes, t1 - t0, others)
 
 
-def stream_figures(reports: list[tuple], strokes: list[tuple], seconds: float) -> dict:
+def stream_figures(reports: list[tuple], strokes: list[tuple], seconds: float,
+                   others: list[tuple] = ()) -> dict:
     """Recall and false triggers of a continuous stream.
 
     Args:
         reports: (gesture, t_start, t_end, stroke key) of every reported window.
         strokes: (gesture, t_start, t_end) of the true strokes.
         seconds: the stream's length.
+        others: (name, t_start, t_end) of the gestures in the stream that are none of ours
+            (grab, tap, thumbs...).
 
     A true stroke is recalled when a window of its gesture overlaps it; a window that overlaps
-    none of its gesture is a false trigger, counted once per stroke however many windows.
+    none of its gesture is a false trigger, counted once per stroke however many windows. A
+    false trigger that overlaps one of `others` is counted apart (``other_gesture_triggers``):
+    what is left (``false_triggers``) fired on returns, holds and moves, per
+    ``other_minutes`` of the time outside every gesture.
     """
     hit = [False] * len(strokes)
-    false_strokes = set()
+    false_strokes, during_other = set(), set()
     for name, w0, w1, key in reports:
         match = [i for i, (g, a, b) in enumerate(strokes) if g == name and w0 < b and w1 > a]
         for i in match:
             hit[i] = True
-        if not match:
+        if match:
+            continue
+        if any(w0 < b and w1 > a for _, a, b in others):
+            during_other.add(key)
+        else:
             false_strokes.add(key)
-    busy = sum(b - a for _, a, b in strokes)
+    busy = sum(b - a for _, a, b in [*strokes, *others])
     return {"strokes": len(strokes), "recalled": int(sum(hit)),
-            "false_triggers": len(false_strokes),
+            "false_triggers": len(false_strokes - during_other),
+            "other_gesture_triggers": len(during_other),
             "other_minutes": max(seconds - busy, 1e-9) / 60.0}
 
 
@@ -457,14 +474,14 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
     for field in ("dynamic", "summary"):
         result[field] = score(result["trials"], field)
         _print_score(field, result[field])
-    recalled = sum(s["recalled"] for s in result["streams"])
-    swipes = sum(s["strokes"] for s in result["streams"])
-    minutes = sum(s["other_minutes"] for s in result["streams"])
-    false = sum(s["false_triggers"] for s in result["streams"])
-    if swipes:
+    total = {k: sum(s[k] for s in result["streams"]) for k in STREAM_COUNTS}
+    if total["strokes"]:
         log(f"\ncontinuous streams ({len(result['streams'])}, hand never leaves): recall "
-            f"{recalled}/{swipes} = {recalled / swipes:.0%}; false triggers {false} in "
-            f"{minutes:.1f} min outside swipes = {false / max(minutes, 1e-9):.2f}/min")
+            f"{total['recalled']}/{total['strokes']} = "
+            f"{total['recalled'] / total['strokes']:.0%}; false triggers on returns, holds "
+            f"and moves {total['false_triggers']} in {total['other_minutes']:.1f} min = "
+            f"{total['false_triggers'] / max(total['other_minutes'], 1e-9):.2f}/min; "
+            f"reported during the other gestures: {total['other_gesture_triggers']}")
     lat = result["latency_ms"]
     if lat:
         log(f"latency stroke end -> last window arrives: p50 {lat['p50']:.0f} ms, p90 "

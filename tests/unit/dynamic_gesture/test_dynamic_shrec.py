@@ -101,7 +101,18 @@ def test_stream_figures_count_recalled_strokes_and_each_false_stroke_once():
                ("swipe_right", 5.1, 5.8, "s3")]  # the wrong gesture over a stroke: false
     figures = realbench.stream_figures(reports, strokes, 62.0)
     assert figures == {"strokes": 2, "recalled": 1, "false_triggers": 2,
-                       "other_minutes": pytest.approx(1.0)}
+                       "other_gesture_triggers": 0, "other_minutes": pytest.approx(1.0)}
+
+
+def test_stream_figures_count_triggers_during_other_gestures_apart():
+    strokes = [("swipe_up", 1.0, 2.0)]
+    others = [("grab", 10.0, 16.0)]
+    reports = [("swipe_up", 1.2, 1.9, "s1"),
+               ("swipe_down", 11.0, 11.5, "s2"),  # during the grab
+               ("swipe_left", 20.0, 20.4, "s3")]  # on a hold or move
+    figures = realbench.stream_figures(reports, strokes, 67.0, others)
+    assert figures["false_triggers"] == 1 and figures["other_gesture_triggers"] == 1
+    assert figures["other_minutes"] == pytest.approx(1.0)  # 67 s less the swipe and the grab
 
 
 def test_leave_people_out_scores_each_person_with_a_library_learned_without_them(tmp_path):
