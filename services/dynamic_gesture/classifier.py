@@ -13,30 +13,38 @@ DTW, and the ProMP likelihood is taken of the window scaled to the template's si
 swipe short or long, slowly or fast; what makes a swipe up a swipe up is its shape. Size is
 left to the "no gesture" alternative, where it separates a twitch from a stroke.
 
-Probabilities come from a **conditional logit** (McFadden) whose few weights θ are shared by all
-templates, so a template added later needs no retraining of the calibration:
+Probabilities come from a **conditional logit** (McFadden) whose few weights are shared by all
+templates, so a template added later needs no retraining of the calibration. Each template and
+"no gesture" gets a utility, ``p = softmax(u)`` over the templates plus ``none`` (sums to 1),
+from these features (`features`):
 
-- template k's utility ``u_k = θ₁·log(d_k / s_k) + θ₂·ℓ_k + θ₃·|c − c_k| + θ₉·(1 − cos
-  φ_k)``: ``d_k`` the per-step DTW distance of the window's shape to the template's, ``s_k``
-  its scale, ``ℓ_k`` the ProMP's robust log-likelihood per value (clipped at
-  `LOGLIK_FLOOR`), ``c`` the window's change of hand shape and ``c_k`` the template's (forming
-  or releasing a static pose rolls the palm too), ``φ_k`` the angle between the window's
-  heading (start → farthest sample, roll included) and the template's: a swipe right of a
-  real, jittery hand still heads right;
-- "no gesture" has ``u_none = θ₄ + θ₅·log(extent) + θ₆·[stroke still running] +
-  θ₇·log(peak speed)``: the extent is the window's largest excursion from its start (mm, roll
-  included as k·roll), the peak speed the stroke's highest (mm/s, likewise): a drift, a slow
-  re-positioning or a preparation is slower than a gesture; and ``θ₈·log(path / extent)``: a
-  gesture goes where it goes, a wobble or a shake wanders;
-- ``p = softmax(u)``: a probability vector over the templates plus ``none`` that sums to 1.
+- template k's match: ``log(d_k / s_k)``, ``d_k`` the per-step DTW distance of the window's
+  shape to the template's, ``s_k`` its scale; ``ℓ_k`` the ProMP's robust log-likelihood per
+  value (clipped at `LOGLIK_FLOOR`); ``|c − c_k|``, ``c`` the window's change of hand shape and
+  ``c_k`` the template's (forming or releasing a static pose rolls the palm too); ``1 − cos
+  φ_k``, ``φ_k`` the angle between the window's heading (start → farthest sample, roll
+  included) and the template's: a swipe right of a real, jittery hand still heads right;
+- the window's context: ``log(extent)``, the largest excursion from its start (mm, roll
+  included as k·roll); ``[stroke still running]``; ``log(peak speed)`` (mm/s, likewise): a
+  drift, a slow re-positioning or a preparation is slower than a gesture; ``log(path /
+  extent)``: a gesture goes where it goes, a wobble or a shake wanders.
 
-θ is fitted by penalised maximum likelihood (`fit_calibration`) on every window the segmenter
-evaluates — mid-stroke and final — of simulated users that the templates were not learned from,
-gestures and non-gestures alike (a static pose formed or released, the roll back after rotate,
-the move out of the field, twitches). A window's truth is what the person is doing in it, so a
-window early in a stroke is that gesture, and the model learns how little of a stroke it can
-tell apart from nothing. `cbgo train dynamic` fits θ; `cbgo bench dynamic` reports the
-calibration (ECE) on other users, whose styles lie outside the training range.
+The shipped library uses `NeuralCalibration`: a template's utility is a small network (one
+tanh layer and a linear part) of its match and the window's context, so how much a loose
+match counts can depend on how large, fast and direct the window is (a real swipe, bowed and
+rolled, next to a small loose preparation); none's utility is linear in the context. The
+original linear form, `Calibration` (``u_k = θ₁·log(d_k / s_k) + θ₂·ℓ_k + θ₃·|c − c_k| +
+θ₉·(1 − cos φ_k)``, ``u_none = θ₄ + θ₅·log(extent) + θ₆·[running] + θ₇·log(peak speed) +
+θ₈·log(path / extent)``) still loads.
+
+The weights are fitted by weighted maximum likelihood (`fit_neural_calibration`; the linear
+form by `fit_calibration`) on every window the segmenter evaluates — mid-stroke and final — of
+simulated users that the templates were not learned from and of real people, gestures and
+non-gestures alike (a static pose formed or released, the roll back after rotate, the move out
+of the field, twitches, real people's other gestures). A window's truth is what the person is
+doing in it, so a window early in a stroke is that gesture, and the model learns how little of
+a stroke it can tell apart from nothing. `cbgo train dynamic` fits them; `cbgo bench dynamic`
+reports the calibration (ECE) on other users, whose styles lie outside the training range.
 """
 
 from __future__ import annotations
@@ -207,6 +215,10 @@ class Calibration:
             raise ValueError(f"calibration theta must be {N_THETA} finite numbers")
         return cls(theta)
 
+    def probabilities(self, feats: np.ndarray) -> np.ndarray:
+        """Returns the probabilities of the alternatives (`features` rows)."""
+        return softmax_rows(feats, self.theta)
+
 
 def reach_of(obs: np.ndarray) -> np.ndarray:
     """Returns the unit vector from a window's start to its farthest sample (its heading)."""
@@ -291,6 +303,166 @@ def fit_calibration(samples: list[np.ndarray], labels: list[int], ridge: float =
     return Calibration(theta)
 
 
+MATCH = [0, 1, 2, 8]  # a template row's own columns: log(d/s), loglik, pose gap, 1 - cos
+CONTEXT = [4, 5, 6, 7]  # the window's: log(extent), in progress, log(peak speed), log(path/ext.)
+N_INPUT = len(MATCH) + len(CONTEXT)
+
+
+def neural_inputs(feats: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Returns a window's (K, 8) template inputs (match, then context) and its (4,) context."""
+    context = feats[-1, CONTEXT]
+    match = feats[:-1][:, MATCH]
+    return np.hstack([match, np.broadcast_to(context, (len(match), len(CONTEXT)))]), context
+
+
+@dataclass
+class NeuralCalibration:
+    """A conditional logit whose template utility is a small network shared by all templates.
+
+    ``u_k = w₂·tanh(W₁x_k + b₁) + s·x_k + b``, with ``x_k`` template k's match features
+    (`MATCH`) and the window's context (`CONTEXT`), standardised; ``u_none = v·c``, linear in
+    the standardised context. The linear model (`Calibration`) weighs how well a window
+    matches a template the same way whatever the window: a real swipe that is large, fast and
+    direct but matches the template's shape loosely (a bowed or rolled one) loses to "none"
+    as a small, loose preparation does. Here the weight of the match may depend on the
+    context. Still one set of weights for every template, so a gesture taught later needs no
+    retraining. None is kept linear: a network there learned that the training people's
+    extents and speeds are the only ones a gesture has (held-out simulated users' small
+    swipes went to "none").
+
+    Attributes:
+        mean, std: (8,) standardisation of the template inputs (the context's are the last 4).
+        w1: (8, H), b1: (H,), w2: (H,) the hidden layer and its output weights.
+        skip: (8,) the linear part; bias: the templates' common offset.
+        none_w: (4,) the none utility's weights on the standardised context.
+    """
+
+    mean: np.ndarray
+    std: np.ndarray
+    w1: np.ndarray
+    b1: np.ndarray
+    w2: np.ndarray
+    skip: np.ndarray
+    bias: float
+    none_w: np.ndarray
+
+    def utilities(self, feats: np.ndarray) -> np.ndarray:
+        """Returns the (K + 1,) utilities of a window's `features` rows."""
+        x, context = neural_inputs(feats)
+        x = (x - self.mean) / self.std
+        c = (context - self.mean[len(MATCH):]) / self.std[len(MATCH):]
+        u = np.tanh(x @ self.w1 + self.b1) @ self.w2 + x @ self.skip + self.bias
+        return np.append(u, c @ self.none_w)
+
+    def probabilities(self, feats: np.ndarray) -> np.ndarray:
+        """Returns the probabilities of the alternatives (`features` rows)."""
+        u = self.utilities(feats)
+        u = np.exp(u - u.max())
+        return u / u.sum()
+
+    def to_dict(self) -> dict:
+        """Returns plain data (JSON-safe)."""
+        out = {"kind": "neural-logit", "bias": float(self.bias),
+               "inputs": ["log(d/s)", "loglik", "|pose change - template's|",
+                          "1 - cos(reach, template's)", "log(extent)", "in-progress",
+                          "log(peak speed)", "log(path / extent)"]}
+        for name in ("mean", "std", "w1", "b1", "w2", "skip", "none_w"):
+            out[name] = np.round(getattr(self, name), 6).tolist()
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict) -> NeuralCalibration:
+        """Rebuilds a calibration from `to_dict` data.
+
+        Raises:
+            ValueError: malformed data.
+        """
+        try:
+            arrays = {name: np.asarray(data[name], dtype=float)
+                      for name in ("mean", "std", "w1", "b1", "w2", "skip", "none_w")}
+            bias = float(data["bias"])
+        except (KeyError, TypeError) as e:
+            raise ValueError(f"malformed neural calibration: {e}") from None
+        hidden = arrays["b1"].shape[0] if arrays["b1"].ndim == 1 else -1
+        shapes = {"mean": (N_INPUT,), "std": (N_INPUT,), "w1": (N_INPUT, hidden),
+                  "b1": (hidden,), "w2": (hidden,), "skip": (N_INPUT,),
+                  "none_w": (len(CONTEXT),)}
+        for name, shape in shapes.items():
+            if arrays[name].shape != shape or not np.isfinite(arrays[name]).all():
+                raise ValueError(f"neural calibration {name} must be {shape} finite numbers")
+        if not (arrays["std"] > 0).all() or not np.isfinite(bias):
+            raise ValueError("neural calibration std must be positive, bias finite")
+        return cls(bias=bias, **arrays)
+
+
+def calibration_from_dict(data: dict) -> Calibration | NeuralCalibration:
+    """Rebuilds either kind of calibration from its `to_dict` data.
+
+    Raises:
+        ValueError: malformed data.
+    """
+    if data.get("kind") == "neural-logit":
+        return NeuralCalibration.from_dict(data)
+    return Calibration.from_dict(data)
+
+
+def fit_neural_calibration(samples: list[np.ndarray], labels: list[int], weights=None,
+                           hidden: int = 6, epochs: int = 400, weight_decay: float = 1e-3,
+                           seed: int = 0) -> NeuralCalibration:
+    """Fits a `NeuralCalibration` by weighted maximum likelihood (Adam, full batch, torch).
+
+    Args:
+        samples: per window, its (K_i + 1, N_THETA) `features` (K_i may differ).
+        labels: per window, the index of the true alternative (K_i for none).
+        weights: per window, its weight in the likelihood (None: 1 each).
+        hidden: units of the hidden layer.
+        epochs: full-batch steps.
+        weight_decay: L2 penalty (Adam's), which keeps the network near smooth.
+        seed: the initial weights' seed (the fit is deterministic on one machine).
+    """
+    import torch  # noqa: PLC0415 (training only: the service runs the numpy forward pass)
+
+    weights = np.ones(len(labels)) if weights is None else np.asarray(weights, dtype=float)
+    groups: dict[int, list[int]] = {}  # windows by number of alternatives, batched together
+    for i, feats in enumerate(samples):
+        groups.setdefault(len(feats), []).append(i)
+    inputs = [neural_inputs(f) for f in samples]
+    stacked = np.vstack([x for x, _ in inputs])
+    mean, std = stacked.mean(0), stacked.std(0) + 1e-6
+    batches = []
+    for idx in groups.values():
+        x = torch.tensor((np.stack([inputs[i][0] for i in idx]) - mean) / std,
+                         dtype=torch.float32)
+        c = torch.tensor((np.stack([inputs[i][1] for i in idx]) - mean[len(MATCH):])
+                         / std[len(MATCH):], dtype=torch.float32)
+        batches.append((x, c, torch.tensor([labels[i] for i in idx]),
+                        torch.tensor(weights[idx], dtype=torch.float32)))
+    torch.manual_seed(seed)
+    layer = torch.nn.Linear(N_INPUT, hidden)
+    out = torch.nn.Linear(hidden, 1, bias=False)
+    skip = torch.nn.Linear(N_INPUT, 1)
+    none = torch.nn.Linear(len(CONTEXT), 1, bias=False)
+    params = [*layer.parameters(), *out.parameters(), *skip.parameters(), *none.parameters()]
+    opt = torch.optim.Adam(params, lr=0.01, weight_decay=weight_decay)
+    total = float(weights.sum())
+    for _ in range(epochs):
+        opt.zero_grad()
+        loss = 0.0
+        for x, c, y, w in batches:
+            u = torch.cat([(out(torch.tanh(layer(x))) + skip(x)).squeeze(-1), none(c)], 1)
+            loss = loss + (torch.nn.functional.cross_entropy(u, y, reduction="none")
+                           * w).sum() / total
+        loss.backward()
+        opt.step()
+
+    def array(t) -> np.ndarray:
+        return t.detach().numpy().astype(float)
+
+    return NeuralCalibration(mean, std, array(layer.weight).T, array(layer.bias),
+                             array(out.weight)[0], array(skip.weight)[0],
+                             float(skip.bias.item()), array(none.weight)[0])
+
+
 class Classifier:
     """A template library plus its calibration: windows in, probability vectors out.
 
@@ -301,8 +473,8 @@ class Classifier:
             vectorised exact DTW) or "fastdtw" (approximate, radius 1); see `dtw`.
     """
 
-    def __init__(self, templates: list[Template], calibration: Calibration,
-                 dtw: str = "exact"):
+    def __init__(self, templates: list[Template],
+                 calibration: Calibration | NeuralCalibration, dtw: str = "exact"):
         if not templates:
             raise ValueError("a classifier needs at least one template")
         names = [t.name for t in templates]
@@ -359,8 +531,8 @@ class Classifier:
             pose_change: the window's change of hand shape (`stroke.Window.pose_change`).
             peak_speed: the stroke's highest speed (`stroke.Window.peak_speed`), mm/s.
         """
-        return softmax_rows(self.features(obs, final, pose_change, peak_speed),
-                            self.calibration.theta)
+        return self.calibration.probabilities(self.features(obs, final, pose_change,
+                                                            peak_speed))
 
     def window_features(self, window) -> np.ndarray:
         """Returns the feature rows of a `stroke.Window`."""
@@ -368,4 +540,4 @@ class Classifier:
 
     def classify(self, window) -> np.ndarray:
         """Returns the probabilities of a `stroke.Window`."""
-        return softmax_rows(self.window_features(window), self.calibration.theta)
+        return self.calibration.probabilities(self.window_features(window))

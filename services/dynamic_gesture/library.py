@@ -25,7 +25,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from cbgo.errors import ConfigError
-from cbgo.services.dynamic_gesture.classifier import NONE, Calibration, Classifier, Template
+from cbgo.services.dynamic_gesture.classifier import (
+    NONE,
+    Calibration,
+    Classifier,
+    NeuralCalibration,
+    Template,
+    calibration_from_dict,
+)
 
 FORMAT = "cbgo-dynamic-gestures"
 USER_FORMAT = "cbgo-dynamic-gesture"
@@ -60,7 +67,8 @@ def user_dir(data_dir: Path) -> Path:
     return Path(data_dir) / "gestures" / "dynamic"
 
 
-def save_default(path: Path, templates: list[Template], calibration: Calibration,
+def save_default(path: Path, templates: list[Template],
+                 calibration: Calibration | NeuralCalibration,
                  observation: dict, training: dict) -> None:
     """Writes the default library (atomically: a reader never sees half a file)."""
     data = {"format": FORMAT, "version": VERSION, "observation": observation,
@@ -109,7 +117,8 @@ def _write_json(path: Path, data: dict) -> None:
     tmp.replace(path)
 
 
-def read_default(path: Path = DEFAULT_PATH) -> tuple[list[Template], Calibration, dict]:
+def read_default(path: Path = DEFAULT_PATH
+                 ) -> tuple[list[Template], Calibration | NeuralCalibration, dict]:
     """Returns (templates, calibration, the whole file as data) of a default library.
 
     Raises:
@@ -120,7 +129,7 @@ def read_default(path: Path = DEFAULT_PATH) -> tuple[list[Template], Calibration
         if data.get("format") != FORMAT or int(data.get("version", 0)) > VERSION:
             raise ValueError(f"not a {FORMAT} file of version <= {VERSION}")
         templates = [Template.from_dict(t) for t in data["templates"]]
-        return templates, Calibration.from_dict(data["calibration"]), data
+        return templates, calibration_from_dict(data["calibration"]), data
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise ConfigError(f"cannot load the dynamic-gesture templates {path} ({e}); run "
                           "`cbgo train dynamic` to create them") from None
@@ -160,7 +169,7 @@ class Library:
     default_path: Path
     user_folder: Path | None
     templates: list[Template] = field(default_factory=list)
-    calibration: Calibration = field(default_factory=Calibration)
+    calibration: Calibration | NeuralCalibration = field(default_factory=Calibration)
     skipped: dict[str, str] = field(default_factory=dict)
     _stamp: tuple = ()
 

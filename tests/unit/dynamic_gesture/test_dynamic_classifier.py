@@ -10,9 +10,12 @@ from cbgo.services.dynamic_gesture.classifier import (
     NONE,
     Calibration,
     Classifier,
+    NeuralCalibration,
     Template,
+    calibration_from_dict,
     features,
     fit_calibration,
+    fit_neural_calibration,
     softmax_rows,
 )
 from cbgo.services.dynamic_gesture.library import (
@@ -99,6 +102,49 @@ def test_calibration_recovers_weights_that_separate_gestures_from_none():
     hits = [int(np.argmax(softmax_rows(f, calibration.theta))) == y
             for f, y in zip(samples, labels, strict=True)]
     assert np.mean(hits) > 0.9
+
+
+def separable_windows(seed: int, n: int = 300):
+    """Feature rows of windows near one of two templates (0, 1) or near neither (2: none)."""
+    rng = np.random.default_rng(seed)
+    samples, labels = [], []
+    for _ in range(n):
+        truth = int(rng.integers(3))
+        d = rng.uniform(2.0, 4.0, 2)
+        if truth < 2:
+            d[truth] = rng.uniform(0.5, 1.5)
+        samples.append(features(np.array([[0, 0, 0, 0], [100, 0, 0, 0]]), d * 0.03,
+                                np.array([0.03, 0.03]), np.array([-3.0, -3.0]), np.zeros(2)))
+        labels.append(truth)
+    return samples, labels
+
+
+def test_the_neural_calibration_separates_gestures_from_none_and_survives_a_round_trip():
+    samples, labels = separable_windows(5)
+    calibration = fit_neural_calibration(samples, labels, epochs=150)
+    probs = np.array([calibration.probabilities(f) for f in samples])
+    assert np.allclose(probs.sum(1), 1.0)
+    assert np.mean(probs.argmax(1) == np.asarray(labels)) > 0.9
+    data = json.loads(json.dumps(calibration.to_dict()))
+    again = calibration_from_dict(data)
+    assert isinstance(again, NeuralCalibration)
+    assert np.allclose([again.probabilities(f) for f in samples], probs, atol=1e-4)
+    assert isinstance(calibration_from_dict({"theta": [0.0] * 9}), Calibration)  # old files
+
+
+def test_the_neural_calibration_serves_any_number_of_templates():
+    samples, labels = separable_windows(6)
+    calibration = fit_neural_calibration(samples, labels, epochs=50)
+    three = np.vstack([samples[0][:2], samples[0][:1], samples[0][2:]])  # a third template
+    assert calibration.probabilities(three).shape == (4,)
+
+
+def test_neural_calibration_data_is_checked():
+    good = fit_neural_calibration(*separable_windows(7, 60), epochs=5).to_dict()
+    for broken in ({**good, "w1": [[1.0]]}, {**good, "std": [0.0] * 8},
+                   {k: v for k, v in good.items() if k != "none_w"}, {**good, "bias": None}):
+        with pytest.raises(ValueError):
+            calibration_from_dict(broken)
 
 
 def test_user_templates_join_the_library_and_replace_a_default_of_the_same_name(tmp_path):

@@ -28,12 +28,14 @@ def test_templates_and_calibration_learned_from_a_tiny_set_load_and_classify(one
     assert [t.name for t in templates] == list(DYNAMIC_GESTURES)
     classifier = Library(DEFAULT_PATH, None).load().classifier()
     feats, labels = train.labelled_features(classifier, [one_user])
-    calibration = train.fit_calibration(feats, labels)
-    assert np.isfinite(calibration.theta).all()
+    calibration = train.fit_neural_calibration(feats, labels, epochs=50)
     path = tmp_path / "tiny.json"
     save_default(path, templates, calibration, {"roll_scale_mm_per_rad": 100.0}, {"users": 1})
-    loaded, _, data = read_default(path)
+    loaded, again, data = read_default(path)
     assert [t.name for t in loaded] == list(DYNAMIC_GESTURES)
+    probs = [again.probabilities(f) for f in feats]
+    assert np.allclose(probs, [calibration.probabilities(f) for f in feats], atol=1e-4)
+    assert np.allclose(np.sum(probs, 1), 1.0)
     assert json.loads(path.read_text())["training"] == {"users": 1} == data["training"]
 
 
