@@ -12,13 +12,13 @@
    swipe-shaped, and calling it "none" would teach that swipes are nothing). The test split's
    people are never read.
 3. One ProMP template per gesture is learned from its demonstrations (`classifier.Template`).
-4. The shared weights of the conditional logit are fitted on every window the service would
-   evaluate (mid-stroke and final) of the calibration users — other simulated people — and of
-   the real people, gestures and non-gestures alike, so the probabilities (``none`` included)
-   are calibrated, to a prior in which the "none" windows weigh a quarter as much as the
-   gestures' (`NONE_WEIGHT`). With ``--folds N`` the real people are also split into N
-   groups first, and each group is scored by a library learned without it: the
-   leave-people-out figures.
+4. The shared weights of the conditional logit (`classifier.NeuralCalibration`) are fitted on
+   every window the service would evaluate (mid-stroke and final) of the calibration users —
+   other simulated people — and of the real people, gestures and non-gestures alike, so the
+   probabilities (``none`` included) are calibrated, to a prior in which the "none" windows
+   together weigh `NONE_WEIGHT` of the gestures'. With ``--folds N`` the real people are
+   also split into N groups first, and each group is scored by a library learned without
+   it: the leave-people-out figures.
 5. The library goes to ``<data dir>/models/dynamic-gesture.json`` (which the service then uses
    in place of the shipped one) or ``--out``, with a summary of the run.
 

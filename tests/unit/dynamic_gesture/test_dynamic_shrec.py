@@ -101,7 +101,15 @@ def test_stream_figures_count_recalled_strokes_and_each_false_stroke_once():
                ("swipe_right", 5.1, 5.8, "s3")]  # the wrong gesture over a stroke: false
     figures = realbench.stream_figures(reports, strokes, 62.0)
     assert figures == {"strokes": 2, "recalled": 1, "false_triggers": 2,
-                       "other_gesture_triggers": 0, "other_minutes": pytest.approx(1.0)}
+                       "other_gesture_triggers": 0, "misread": 0,
+                       "other_minutes": pytest.approx(1.0)}
+
+
+def test_a_stroke_that_recalls_a_swipe_is_a_misread_not_a_false_trigger():
+    strokes = [("swipe_up", 1.0, 2.0)]
+    reports = [("swipe_left", 1.1, 1.4, "s1"), ("swipe_up", 1.1, 1.9, "s1")]
+    figures = realbench.stream_figures(reports, strokes, 61.0)
+    assert (figures["recalled"], figures["false_triggers"], figures["misread"]) == (1, 0, 1)
 
 
 def test_stream_figures_count_triggers_during_other_gestures_apart():
