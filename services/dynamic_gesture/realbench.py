@@ -330,9 +330,7 @@ def run_stream(player: _Player, frames: list[tuple], spans: list[tuple], device:
     time.sleep(0.5)
     with player.lock:
         messages = [m for _, m in player.dynamic[first:]]
-    swipe_names = set(shrec.SWIPES.values())
-    swipes = [(name, t0 + a, t0 + b) for name, a, b in spans if name in swipe_names]
-    others = [(name, t0 + a, t0 + b) for name, a, b in spans if name not in swipe_names]
+    swipes, others = split_spans(spans, t0)
     reports = [(name, *msg["window"], (msg["hand_id"], msg["window"][0]))
                for name, _, msg in _reported(messages)]
     return stream_figures(reports, swipes, t1 - t0, others)
@@ -441,9 +439,7 @@ def stream_sets(device: str, trials: list[Trial], sequences: list[shrec.Sequence
     out = []
     for person in rng.choice(people, min(streams, len(people)), replace=False) if people else []:
         if device == "shrec17":
-            own = [s for s in sequences if s.person == person
-                   and (s.gesture in shrec.SWIPES or s.gesture in OTHER)]
-            out.append(shrec_stream([own[i] for i in rng.permutation(len(own))[:10]]))
+            out += person_streams([s for s in sequences if s.person == person], 1, rng)
         else:
             own = [t for t in trials if t.person == person
                    and not t.gesture.startswith(leapjs.SWIPE_LIKE)]
@@ -624,17 +620,43 @@ def score_stream(classifier, scenario: Scenario, config) -> dict:
     """Plays a scenario through the service's logic; returns recall and false triggers."""
     frames = list(SimulatedUser(scenario, 60.0).frames())
     times = np.array([f.t for f in frames])
-    labels = [f.label for f in frames]
-    strokes = simdata.true_strokes(times, labels)
+    strokes = simdata.true_strokes(times, [f.label for f in frames])
+    return replay_stream(classifier, [(f.t, f.hands) for f in frames], strokes, [], config)
+
+
+def replay_stream(classifier, frames: list[tuple], strokes: list[tuple], others: list[tuple],
+                  config) -> dict:
+    """Plays (time, hands) frames through the service's logic offline; returns its figures.
+
+    The segmenter, the return filter and the classifier as the service runs them, without the
+    wire; a window is reported as a gesture when its top gesture has p ≥ `GESTURE_P`.
+    `strokes` and `others` are as `stream_figures` takes them.
+    """
     segmenter = Segmenter(config)
-    windows = [w for f in frames for w in segmenter.update(f.t, f.hands)]
+    windows = [w for t, hands in frames for w in segmenter.update(t, hands)]
     reports = []
     for window, probs in reported(windows, ReturnFilter(segmenter.config.return_s),
                                   classifier.classify):
         top = int(np.argmax(probs[:-1]))
         if probs[top] >= GESTURE_P:
             reports.append((classifier.names[top], window.t_start, window.t_end, window.stroke))
-    return stream_figures(reports, strokes, times[-1] - times[0])
+    return stream_figures(reports, strokes, frames[-1][0] - frames[0][0], others)
+
+
+def split_spans(spans: list[tuple], t0: float = 0.0) -> tuple[list[tuple], list[tuple]]:
+    """Returns a stream's (name, t0, t1) spans as its swipes and its other gestures, + t0."""
+    swipe_names = set(shrec.SWIPES.values())
+    shifted = [(name, t0 + a, t0 + b) for name, a, b in spans]
+    return ([s for s in shifted if s[0] in swipe_names],
+            [s for s in shifted if s[0] not in swipe_names])
+
+
+def person_streams(sequences: list[shrec.Sequence], count: int, rng: np.random.Generator,
+                   length: int = 10) -> list[tuple[list[tuple], list[tuple]]]:
+    """Returns `count` SHREC'17 streams of one person's swipes and other gestures (`OTHER`)."""
+    own = [s for s in sequences if s.gesture in shrec.SWIPES or s.gesture in OTHER]
+    return [shrec_stream([own[i] for i in rng.permutation(len(own))[:length]])
+            for _ in range(count if own else 0)]
 
 
 def run_streams(classifier, users: int, seed: int, config, ranges) -> dict:

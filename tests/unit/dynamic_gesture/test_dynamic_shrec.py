@@ -144,3 +144,5 @@ def test_leave_people_out_scores_each_person_with_a_library_learned_without_them
     assert set(block["recall"]) == set(shrec.SWIPE_DIRECTIONS)
     finals = np.asarray(block["confusion_finals"])  # answered by final windows only
     assert finals.sum() == 4 and set(block["recall_finals"]) == set(shrec.SWIPE_DIRECTIONS)
+    # each held-out person's one swipe, played as a stream STREAMS_PER_PERSON times
+    assert block["streams"]["strokes"] == 4 * train.STREAMS_PER_PERSON
