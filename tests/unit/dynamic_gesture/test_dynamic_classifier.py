@@ -86,24 +86,6 @@ def test_a_template_learned_from_a_few_takes_is_recognised_and_serialisable():
     assert classifier.names[int(p.argmax())] == "swipe_diag"
 
 
-def test_calibration_recovers_weights_that_separate_gestures_from_none():
-    rng = np.random.default_rng(3)
-    samples, labels = [], []
-    for _ in range(300):
-        truth = int(rng.integers(3))  # 0, 1: a template; 2: none
-        d = rng.uniform(2.0, 4.0, 2)
-        if truth < 2:
-            d[truth] = rng.uniform(0.5, 1.5)
-        samples.append(features(np.array([[0, 0, 0, 0], [100, 0, 0, 0]]), d * 0.03,
-                                np.array([0.03, 0.03]), np.array([-3.0, -3.0]), np.zeros(2)))
-        labels.append(truth)
-    calibration = fit_calibration(samples, labels)
-    assert calibration.theta[0] < 0  # farther from a template: less likely that template
-    hits = [int(np.argmax(softmax_rows(f, calibration.theta))) == y
-            for f, y in zip(samples, labels, strict=True)]
-    assert np.mean(hits) > 0.9
-
-
 def separable_windows(seed: int, n: int = 300):
     """Feature rows of windows near one of two templates (0, 1) or near neither (2: none)."""
     rng = np.random.default_rng(seed)
@@ -117,6 +99,15 @@ def separable_windows(seed: int, n: int = 300):
                                 np.array([0.03, 0.03]), np.array([-3.0, -3.0]), np.zeros(2)))
         labels.append(truth)
     return samples, labels
+
+
+def test_calibration_recovers_weights_that_separate_gestures_from_none():
+    samples, labels = separable_windows(3)
+    calibration = fit_calibration(samples, labels)
+    assert calibration.theta[0] < 0  # farther from a template: less likely that template
+    hits = [int(np.argmax(softmax_rows(f, calibration.theta))) == y
+            for f, y in zip(samples, labels, strict=True)]
+    assert np.mean(hits) > 0.9
 
 
 def test_the_neural_calibration_separates_gestures_from_none_and_survives_a_round_trip():
