@@ -375,6 +375,22 @@ def stream_figures(reports: list[tuple], strokes: list[tuple], seconds: float,
             "other_minutes": max(seconds - busy, 1e-9) / 60.0}
 
 
+def stream_totals(rows: list[dict]) -> dict:
+    """Returns the sums of several streams' `stream_figures`."""
+    return {key: sum(row[key] for row in rows) for key in STREAM_COUNTS}
+
+
+def describe_streams(total: dict) -> str:
+    """Returns `stream_totals` as one line: recall, false triggers per minute, the rest."""
+    return (f"recall {total['recalled']}/{total['strokes']} = "
+            f"{total['recalled'] / max(total['strokes'], 1):.1%}; false triggers on returns, "
+            f"preparations, holds and moves {total['false_triggers']} in "
+            f"{total['other_minutes']:.1f} min outside every gesture = "
+            f"{total['false_triggers'] / max(total['other_minutes'], 1e-9):.2f}/min; reported "
+            f"during the other gestures {total['other_gesture_triggers']}; swipes misread in "
+            f"some windows {total['misread']}")
+
+
 def latencies(player: _Player) -> dict:
     """Stroke end → arrival of the stroke's last window, over everything collected."""
     last: dict[tuple, tuple[float, dict]] = {}
@@ -473,15 +489,10 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
     for field in ("dynamic", "summary"):
         result[field] = score(result["trials"], field)
         _print_score(field, result[field])
-    total = {k: sum(s[k] for s in result["streams"]) for k in STREAM_COUNTS}
+    total = stream_totals(result["streams"])
     if total["strokes"]:
-        log(f"\ncontinuous streams ({len(result['streams'])}, hand never leaves): recall "
-            f"{total['recalled']}/{total['strokes']} = "
-            f"{total['recalled'] / total['strokes']:.0%}; false triggers on returns, holds "
-            f"and moves {total['false_triggers']} in {total['other_minutes']:.1f} min = "
-            f"{total['false_triggers'] / max(total['other_minutes'], 1e-9):.2f}/min; "
-            f"reported during the other gestures: {total['other_gesture_triggers']}; swipes "
-            f"misread in some windows: {total['misread']}")
+        log(f"\ncontinuous streams ({len(result['streams'])}, hand never leaves): "
+            + describe_streams(total))
     lat = result["latency_ms"]
     if lat:
         log(f"latency stroke end -> last window arrives: p50 {lat['p50']:.0f} ms, p90 "
@@ -661,14 +672,9 @@ def person_streams(sequences: list[shrec.Sequence], count: int, rng: np.random.G
 
 def run_streams(classifier, users: int, seed: int, config, ranges) -> dict:
     """Scores `users` continuous streams; prints and returns the totals."""
-    rows = [score_stream(classifier, stream_scenario(seed + i, ranges), config)
-            for i in range(users)]
-    total = {k: sum(r[k] for r in rows) for k in rows[0]}
+    total = stream_totals([score_stream(classifier, stream_scenario(seed + i, ranges), config)
+                           for i in range(users)])
     print(f"\nsynthetic continuous streams ({users} simulated users, hand never leaves; "
           f"swipes from anywhere, returns, drift, wobble, slow re-positioning, slow palm "
-          f"turns): recall {total['recalled']}/{total['strokes']} = "
-          f"{total['recalled'] / max(total['strokes'], 1):.1%}; false triggers "
-          f"{total['false_triggers']} in {total['other_minutes']:.1f} min outside strokes = "
-          f"{total['false_triggers'] / total['other_minutes']:.2f}/min; strokes misread in "
-          f"some windows {total['misread']}")
+          f"turns): " + describe_streams(total))
     return total

@@ -189,7 +189,7 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     confusion = {rule: np.zeros((len(names), len(names)), dtype=int) for rule in RULES}
     other = 0
     other_false = dict.fromkeys(RULES, 0)
-    streams = dict.fromkeys(realbench.STREAM_COUNTS, 0)
+    streams = []
     rng = np.random.default_rng(TRAIN_SEED)
     config = SegmenterConfig(return_s=return_s)
     for k in range(folds):
@@ -208,14 +208,13 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
                     other_false[rule] += answer != "nothing"
         for person in sorted(held):
             own = [seq for seq, _, _ in recordings if seq.person == person]
-            for frames, spans in realbench.person_streams(own, STREAMS_PER_PERSON, rng):
-                figures = realbench.replay_stream(classifier, frames,
-                                                  *realbench.split_spans(spans), config)
-                for key in streams:
-                    streams[key] += figures[key]
+            streams += [realbench.replay_stream(classifier, frames,
+                                                *realbench.split_spans(spans), config)
+                        for frames, spans in realbench.person_streams(own, STREAMS_PER_PERSON,
+                                                                      rng)]
         log(f"  fold {k + 1}/{folds}: people {sorted(held)} scored")
     out = {"folds": folds, "people": people, "names": names, "other_trials": other,
-           "streams": streams}
+           "streams": realbench.stream_totals(streams)}
     for rule in RULES:
         c = confusion[rule]
         recall = {n: float(c[i, i] / max(c[i].sum(), 1)) for i, n in enumerate(names[:4])}
@@ -279,12 +278,8 @@ def print_leave_people_out(block: dict) -> None:
     s = block.get("streams")
     if s and s["strokes"]:
         print(f"\ncontinuous streams of the held-out people ({STREAMS_PER_PERSON} each, 10 "
-              f"recordings, hand never leaves; replayed offline): recall {s['recalled']}/"
-              f"{s['strokes']} = {s['recalled'] / s['strokes']:.1%}; false triggers on "
-              f"returns, preparations, holds and moves {s['false_triggers']} in "
-              f"{s['other_minutes']:.1f} min = {s['false_triggers'] / s['other_minutes']:.2f}"
-              f"/min; reported during the other gestures {s['other_gesture_triggers']}; swipes "
-              f"misread in some windows {s['misread']}")
+              f"recordings, hand never leaves; replayed offline): "
+              + realbench.describe_streams(s))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -304,7 +299,6 @@ def run(args: argparse.Namespace) -> int:
     print(metrics.format_confusion(np.asarray(figures["confusion"]), names))
     print(f"balanced accuracy {figures['balanced_accuracy']:.2%}, "
           f"ECE {figures['ece']:.3f}, log-loss {figures['log_loss']:.3f}")
-    print(f"template scales "
-          f"{ {t.name: round(t.scale, 3) for t in templates} }")
+    print(f"template scales { {t.name: round(t.scale, 3) for t in templates} }")
     print(f"wrote {out} in {summary['seconds']:.0f} s")
     return 0
