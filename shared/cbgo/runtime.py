@@ -417,6 +417,7 @@ class _EventLoop:
 
     def run(self, ctx: Context) -> None:
         while not ctx.stopping.is_set():
+            self._run_queued(ctx)
             wait = ctx.run_due_timers()
             if ctx.stopping.is_set():
                 break
@@ -424,6 +425,24 @@ class _EventLoop:
                 work = self.queue.get(timeout=wait)
             except queue.Empty:
                 continue
+            if work is not None:
+                work()
+
+    def _run_queued(self, ctx: Context) -> None:
+        """Runs the work already queued, before any timer that fell due meanwhile.
+
+        After a stall (a starved process) a timer must see the messages that arrived during it:
+        the episode's end-of-hand check would otherwise end an episode whose next hand frames
+        wait in the queue. Only what is queued now runs, so a steady stream cannot starve the
+        timers.
+        """
+        for _ in range(self.queue.qsize()):
+            if ctx.stopping.is_set():
+                return
+            try:
+                work = self.queue.get_nowait()
+            except queue.Empty:
+                return
             if work is not None:
                 work()
 

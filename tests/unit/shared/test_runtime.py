@@ -193,3 +193,25 @@ def test_waiting_for_a_service_sees_its_liveliness(bus):
     assert ctx.wait_for_service("planner", timeout_s=0.1) is False
     bus.set_alive("planner")
     assert ctx.wait_for_service("planner", timeout_s=0.1) is True
+
+
+def test_after_a_stall_queued_messages_run_before_the_timer_that_fell_due():
+    # The episode's end-of-hand timer must see the frames that arrived while the process was
+    # starved; otherwise it ends an episode whose next hand frames wait in the queue.
+    from cbgo.runtime import Context, _EventLoop
+
+    order = []
+    loop = _EventLoop(lambda: None)
+    ctx = Context(Echo(EchoSettings()), keys.Keys("cbgo"), transport=None, config={},
+                  enqueue=loop.enqueue)
+
+    def tick():
+        order.append("timer")
+        ctx.stopping.set()
+
+    ctx.every(0.01, tick)
+    loop.enqueue(lambda: order.append("frame 1"), True)
+    loop.enqueue(lambda: order.append("frame 2"), True)
+    time.sleep(0.02)  # the stall: the timer is due, two frames are queued
+    loop.run(ctx)
+    assert order == ["frame 1", "frame 2", "timer"]
