@@ -42,6 +42,8 @@ The snapshot saved at a trigger is the *current* probability of every gesture: t
 static vector of each side if it is at most ``max_gap_s`` old, and the latest dynamic window of
 each side up to ``dynamic_hold_s`` after the window's end (a stroke's classification stays
 current a little after it); several are merged by name with the maximum.
+A dynamic trigger's vector also takes in the later windows of its stroke (same side and start),
+by the maximum: they judge the same stroke with more of it seen, so they are saved for it too.
 
 This module is pure (numbers and dicts): no Zenoh, no clock of its own. Times are seconds on
 the frames' clock.
@@ -167,9 +169,25 @@ class Evidence:
         t0, t1 = float(window[0]), float(window[1])
         vector = dict(zip(names, map(float, probs), strict=True))
         self._dynamic[side] = (t1, vector)  # the newest evaluation is the current one
+        self._refine(side, t0, vector)
         weight = 1.0 - math.exp(-max(t1 - t0, 0.0) / self.settings.dynamic_tau_s)
         return self._update("dynamic", side, t1, vector, self.settings.dynamic_tau_s,
                             lambda decayed, p: max(decayed, p * weight), (t0, t1))
+
+    def _refine(self, side: str, t0: float, vector: dict[str, float]) -> None:
+        """Saves a later window of a stroke that triggered into that trigger's vector (max).
+
+        The windows of one stroke share its start and judge the same stroke with more of it
+        seen, so each is a vector saved for the trigger. Saving only the window that crossed
+        E_t let an early, unsure window of the real swipe lose to a sure preparation or return
+        in g (SHREC'17 train split, held-out people: see services/episode/README.md).
+        """
+        for trigger in self.triggers:
+            if (trigger.source == "dynamic" and trigger.side == side
+                    and trigger.window is not None and trigger.window[0] == t0):
+                for name, p in vector.items():
+                    if self.is_gesture(name):
+                        trigger.snapshot[name] = max(trigger.snapshot.get(name, 0.0), p)
 
     def _update(self, source: str, side: str, t: float, vector: dict[str, float], tau: float,
                 combine, window: tuple[float, float] | None = None) -> list[Trigger]:

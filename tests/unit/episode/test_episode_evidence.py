@@ -92,6 +92,21 @@ def test_growing_windows_of_one_stroke_are_not_counted_twice():
     assert trig.gesture == "rotate"
 
 
+def test_later_windows_of_the_triggering_stroke_are_saved_with_its_trigger():
+    # A preparation triggers swipe_left sure; the real swipe_right triggers on an early, unsure
+    # window and is then judged sure: g must name swipe_right, not the preparation.
+    ev = Evidence()
+    names = ["swipe_left", "swipe_right", "none"]
+    (prep,) = ev.dynamic((0.0, 0.5), "right", names, [0.85, 0.05, 0.10])
+    (swipe,) = ev.dynamic((2.0, 2.4), "right", names, [0.05, 0.70, 0.25])
+    ev.dynamic((2.0, 2.6), "right", names, [0.02, 0.97, 0.01])
+    ev.dynamic((5.0, 5.4), "left", names, [0.01, 0.99, 0.0])  # another hand's stroke: not its
+    assert swipe.snapshot["swipe_right"] == 0.97 and prep.snapshot["swipe_right"] == 0.05
+    g = dict(zip(*gesture_vector([t.snapshot for t in ev.triggers], names)))
+    assert max(g, key=g.get) == "swipe_right"
+    assert "none" not in swipe.snapshot
+
+
 def test_the_snapshot_merges_static_and_dynamic_probabilities_by_name():
     ev = Evidence()
     hold(ev, "point", 0.9, 0.2, 60)
