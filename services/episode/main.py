@@ -52,7 +52,7 @@ class EpisodeSettings:
         "an episode ends once no hand has been seen for this long, s (0.02-2)"))
     check_period_s: float = field(default=0.005, metadata=_help(
         "how often the end condition is checked between frames, s"))
-    clock_slack_s: float = field(default=0.85, metadata=_help(
+    clock_slack_s: float = field(default=2.0, metadata=_help(
         "the local clock ends an episode only this long after the debounce (frames that "
         "arrive late must not split a gesture; frame time stamps end it on time), s"))
     evidence: EvidenceSettings = field(default_factory=EvidenceSettings, metadata=_help(

@@ -15,7 +15,8 @@ end condition is met at *last hand frame + debounce*; it is detected by whicheve
   all (a sensor unplugged, a replay at its end).
 
 Each `Boundary` carries the local clock time at which the end condition was met (last hand
-arrival + debounce), so the service can measure its end → summary latency.
+arrival + debounce, + the slack on the clock path), so the service can measure its end →
+summary latency.
 
 Pure logic: times are passed in, nothing here reads a clock or imports Zenoh.
 """
@@ -24,6 +25,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+# Frame stamps are a sensor's (or a clock's) and jitter, and k frame periods add up to a hair
+# less than k/rate in floating point: without a tolerance, at 60 Hz the 9th empty frame
+# (0.15 s) missed the default debounce and the 10th ended the episode, 17 ms late.
+STAMP_TOLERANCE_S = 0.002
 
 
 @dataclass(frozen=True)
@@ -36,7 +42,8 @@ class Boundary:
         by: what detected it: ``frame`` (the frames' time stamps) or ``clock`` (the local
             clock: the service's timer, or an empty frame that arrived late).
         condition_at: local clock time the condition was met: the first hand frame's arrival
-            (start), or the last hand frame's arrival + debounce (end).
+            (start), or the last hand frame's arrival + debounce (end by frame) or + debounce
+            + clock slack (end by clock).
     """
 
     kind: str
@@ -76,7 +83,7 @@ class Segmenter:
             visible: whether the frame shows at least one hand.
         """
         out = []
-        if self.open and ts - self.last_hand_ts >= self.debounce_s:
+        if self.open and ts - self.last_hand_ts >= self.debounce_s - STAMP_TOLERANCE_S:
             out.append(self._end("frame"))
         if visible:
             if not self.open:
@@ -95,4 +102,5 @@ class Segmenter:
 
     def _end(self, by: str) -> Boundary:
         self.open = False
-        return Boundary("end", self.last_hand_ts, by, self.last_hand_at + self.debounce_s)
+        wait = self.clock_wait_s if by == "clock" else self.debounce_s
+        return Boundary("end", self.last_hand_ts, by, self.last_hand_at + wait)

@@ -119,7 +119,7 @@ def test_every_service_connects_over_tls_with_the_certificate_of_its_own_name(se
     assert {"/data/models", "/data/recordings"} <= set(mounted), "base volumes must stay"
     assert all(v.endswith(":ro") for v in service["volumes"] if "tls" in v)
     # The healthcheck runs in the same environment, so it speaks TLS with the same certificate.
-    assert service["healthcheck"]["test"][1:4] == ["cbgo", "wait-alive", name]
+    assert service["healthcheck"]["test"][4:7] == ["cbgo", "wait-alive", name]
 
 
 def test_the_router_listens_on_tls_only_and_checks_its_own_health_over_tls(services):
@@ -134,7 +134,7 @@ def test_the_router_listens_on_tls_only_and_checks_its_own_health_over_tls(servi
     assert mounted[str(SECRETS)] == "$CBGO_CERTS/router"
     assert mounted[ROUTER_IN_CONTAINER] == "./tls/router.json5"
     test = router["healthcheck"]["test"]
-    assert test[:4] == ["CMD", "cbgo", "wait-alive", "router"]
+    assert test[:7] == ["CMD", "nice", "-n", "19", "cbgo", "wait-alive", "router"]
     assert test[test.index("--connect") + 1] == "tls/localhost:7447"
     assert test[test.index("--config") + 1] == CLIENT_IN_CONTAINER
     assert {"target": 7447, "published": "${CBGO_PORT:-7447}"} in router["ports"]

@@ -102,7 +102,7 @@ def test_later_windows_of_the_triggering_stroke_are_saved_with_its_trigger():
     ev.dynamic((2.0, 2.6), "right", names, [0.02, 0.97, 0.01])
     ev.dynamic((5.0, 5.4), "left", names, [0.01, 0.99, 0.0])  # another hand's stroke: not its
     assert swipe.snapshot["swipe_right"] == 0.97 and prep.snapshot["swipe_right"] == 0.05
-    g = dict(zip(*gesture_vector([t.snapshot for t in ev.triggers], names)))
+    g = dict(zip(*gesture_vector([t.snapshot for t in ev.triggers], names), strict=True))
     assert max(g, key=g.get) == "swipe_right"
     assert "none" not in swipe.snapshot
 

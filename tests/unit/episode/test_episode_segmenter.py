@@ -38,6 +38,14 @@ def test_a_dropout_shorter_than_the_debounce_does_not_split_the_episode():
     assert [b.kind for _, b in got] == ["start", "end"]
 
 
+def test_a_frame_a_debounce_later_ends_it_though_its_stamp_jitters_a_little_early():
+    seg = Segmenter(0.15)
+    seg.frame(10.0, 0.0, True)
+    assert seg.frame(10.140, 0.14, False) == []  # 10 ms short: not yet
+    (end,) = seg.frame(10.1495, 0.15, False)  # the 9th frame at 60 Hz, stamped 0.5 ms early
+    assert end.by == "frame" and end.ts == 10.0
+
+
 def test_the_timer_ends_the_episode_when_frames_stop_coming():
     seg = Segmenter(0.15)
     feed(seg, [True] * 5)
@@ -73,6 +81,7 @@ def test_with_a_clock_slack_frames_that_arrive_late_in_a_burst_keep_the_episode(
     assert seg.tick(0.5) is None
     end = seg.tick(0.3 + 0.5)  # frames really stopped: the clock ends it after both
     assert end.by == "clock" and end.ts == pytest.approx(10.04)
+    assert end.condition_at == pytest.approx(0.3 + 0.5)  # the clock's condition, slack included
 
 
 def test_the_debounce_must_be_positive():
