@@ -555,14 +555,15 @@ def _length_ratio(other: list, swipe) -> float:
     """How far `other` (a one-window list) went in space relative to `swipe`, if it reverses it.
 
     NaN when there is no such window, or it does not reverse the swipe (`stroke.reverses`:
-    the cosine of their displacements below -0.5), or it moved less than `REVERSE_MIN_MM`.
+    the cosine of their displacements below `REVERSE_COS_MAX`, as the return filter judges),
+    or it moved less than `REVERSE_MIN_MM`.
     """
     if not other:
         return np.nan
     a = other[0].obs[-1] - other[0].obs[0]
     b = swipe.obs[-1] - swipe.obs[0]
     length = float(np.linalg.norm(a[:3]))
-    if length < REVERSE_MIN_MM or not reverses(a[:3], b[:3], -0.5):
+    if length < REVERSE_MIN_MM or not reverses(a[:3], b[:3]):
         return np.nan
     return length / max(float(np.linalg.norm(b[:3])), 1.0)
 

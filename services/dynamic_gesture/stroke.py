@@ -567,7 +567,12 @@ class _Gesture:
     p: float
 
 
-def reverses(delta: np.ndarray, previous: np.ndarray, cos_max: float) -> bool:
+# A stroke more than 102° from the one before reverses it: real returns come back on a curve
+# (`ReturnFilter`'s choice of -0.2, and the realism bench's return and preparation ratios).
+REVERSE_COS_MAX = -0.2
+
+
+def reverses(delta: np.ndarray, previous: np.ndarray, cos_max: float = REVERSE_COS_MAX) -> bool:
     """Whether displacement `delta` points back against `previous`.
 
     With the roll included, or in space alone when both moved in space (a swipe's palm may
@@ -593,9 +598,9 @@ class ReturnFilter:
     ``sure``) and the reversing stroke was much faster (more than ``faster`` times its peak
     speed); or the reversing stroke went much farther in space (more than ``farther`` times).
     People come back about as far as they swiped, while they swipe farther than they
-    prepared (SHREC'17 train split, `cbgo bench dynamic --realism DIR`: a return goes 0.95
-    of the swipe's length, median, 1.38 at the 90th percentile; a swipe goes 2.35 times as
-    far as a preparation that reversed it, median, 1.13 at the 10th). A stroke cut short by
+    prepared (SHREC'17 train split, `cbgo bench dynamic --realism DIR`: a return goes 0.94
+    of the swipe's length, median, 1.38 at the 90th percentile; a swipe goes 2.15 times as
+    far as a preparation that reversed it, median, 1.06 at the 10th). A stroke cut short by
     the hand leaving is always a return: it has neither speed nor length to judge. A stroke
     reversing a non-gesture (a preparation classified ``none``) is always reported.
 
@@ -612,7 +617,7 @@ class ReturnFilter:
         farther: how much farther than a gesture its reversal must go to be reported.
     """
 
-    def __init__(self, within_s: float, cos_max: float = -0.2, faster: float = 1.5,
+    def __init__(self, within_s: float, cos_max: float = REVERSE_COS_MAX, faster: float = 1.5,
                  sure: float = 0.8, farther: float = 2.0):
         self.within_s, self.cos_max, self.faster, self.sure = within_s, cos_max, faster, sure
         self.farther = farther
