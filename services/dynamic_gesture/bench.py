@@ -29,7 +29,9 @@
 
 4. **Real people** (``--real DIR``): the SHREC'17 skeletons or Leap Motion recordings
    (LeapJS frames, `leapjs`) through live services, see `realbench`; ``--realism DIR``
-   compares the simulated users' swipe habits with theirs.
+   compares the simulated users' swipe habits with theirs. ``--live-sim N`` plays N held-out
+   simulated users the same way (`realbench.simulated_trials`: each dynamic gesture once per
+   appearance of the hand, rotate included), to score the episode summary on them too.
 
 Examples::
 
@@ -37,6 +39,7 @@ Examples::
     cbgo bench dynamic --real ~/.cache/cbgo/shrec17/datasetShrec
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --per-class 0   # real Leap recordings
     cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec
+    cbgo bench dynamic --live-sim 16           # simulated users through live services
     cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
     cbgo bench dynamic --ranges train          # held-out users inside the training range
 """
@@ -77,6 +80,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="continuous streams of simulated users (hand never leaves) [6]")
     parser.add_argument("--templates", type=Path, default=DEFAULT_PATH,
                         help="template library [the shipped models/default.json]")
+    parser.add_argument("--live-sim", type=int, default=0, metavar="USERS",
+                        help="instead of the above: USERS simulated users (--ranges, --seed) "
+                             "perform each dynamic gesture once per appearance of the hand, "
+                             "played like --real through live dynamic-gesture and episode "
+                             "services in real time [0: off]")
     parser.add_argument("--latency", action=argparse.BooleanOptionalAction, default=True,
                         help="measure latency through real processes [on]")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
@@ -266,6 +274,12 @@ def run(args: argparse.Namespace) -> int:
     if args.real is not None:
         return realbench.run_real(args.real, args.split, args.per_class, args.streams,
                                   args.seed, args.json)
+    if args.live_sim > 0:
+        trials = realbench.simulated_trials(args.live_sim, args.seed,
+                                            simdata.RANGES[args.ranges])
+        result = realbench.play_live(trials, [], "simulated",
+                                     f"{args.live_sim} simulated {args.ranges} users")
+        return realbench.report_live(result, args.json)
     if args.realism is not None:
         config = SegmenterConfig()
         real = realbench.real_habits(args.realism, "train", config)

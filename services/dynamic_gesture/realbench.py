@@ -91,6 +91,8 @@ class Trial:
         """Returns (time from the first frame, hands) per recorded frame."""
         if isinstance(self.recording, shrec.Sequence):
             return shrec_frames(self.recording.joints())
+        if isinstance(self.recording, list):  # a simulated user's frames (`simulated_trials`)
+            return self.recording
         return [(m["ts"], m["hands"]) for m in self.recording.frames()]
 
 
@@ -405,14 +407,18 @@ def latencies(player: _Player) -> dict:
 
 
 def score(rows: list[dict], field: str) -> dict:
-    """Returns the confusion over the swipes (+ nothing) and the balanced accuracy."""
+    """Returns the confusion over the dynamic gestures (+ nothing) and the balanced accuracy.
+
+    The balanced accuracy is over the gestures the trials hold: the four swipes of a real set,
+    rotate too for simulated users.
+    """
     names = [*shrec.SWIPES.values(), "rotate", NOTHING]
     swipe_rows = [r for r in rows if r["truth"] != "none"]
     y = [names.index(r["truth"]) for r in swipe_rows]
     pred = [names.index(r[field]) if r[field] in names else names.index(NOTHING)
             for r in swipe_rows]
     confusion = metrics.confusion_matrix(np.array(y), np.array(pred), len(names))
-    recall = {n: float(confusion[i, i] / confusion[i].sum()) for i, n in enumerate(names[:4])
+    recall = {n: float(confusion[i, i] / confusion[i].sum()) for i, n in enumerate(names[:5])
               if confusion[i].sum()}
     false = sum(1 for r in rows if r["truth"] == "none" and r[field] != NOTHING)
     return {"recall": recall, "balanced_accuracy": float(np.mean(list(recall.values()))),
@@ -466,14 +472,21 @@ def stream_sets(device: str, trials: list[Trial], sequences: list[shrec.Sequence
 def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
              json_path: Path | None, log=print) -> int:
     """The whole real-data bench (see the module docstring)."""
-    from cbgo.testing import Stack  # noqa: PLC0415 (test harness only when benching live)
-
     device, all_trials, sequences = real_trials(root, split)
     if device == "shrec17" and split == "test":
         log("note: the test split's people are reserved for acceptance checks; never tune on "
             "these figures")
     trials = pick_trials(all_trials, per_class, seed)
     streams_played = stream_sets(device, all_trials, sequences, streams, seed + 1)
+    where = f"{device}'s {split} split" if device == "shrec17" else device
+    return report_live(play_live(trials, streams_played, device, where, log), json_path, log)
+
+
+def play_live(trials: list[Trial], streams: list[tuple], device: str, where: str,
+              log=print) -> dict:
+    """Plays trials, then streams, through a router, dynamic-gesture and episode in real time."""
+    from cbgo.testing import Stack  # noqa: PLC0415 (test harness only when benching live)
+
     with tempfile.TemporaryDirectory() as tmp, Stack(Path(tmp)) as stack:
         stack.start_router()
         for name in ("dynamic-gesture", "episode"):
@@ -481,11 +494,15 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
         stack.wait_alive(["router", "dynamic-gesture", "episode"], timeout=90)
         player = _Player(stack)
         time.sleep(0.5)  # let the subscribers' declarations reach the router
-        log(f"{len(trials)} trials of {device}"
-            + (f"'s {split} split" if device == "shrec17" else "") + ", real time")
+        log(f"{len(trials)} trials of {where}, real time")
         result = run_trials(player, trials, device, log)
-        result["streams"] = [run_stream(player, *stream, device) for stream in streams_played]
+        result["streams"] = [run_stream(player, *stream, device) for stream in streams]
         result["latency_ms"] = latencies(player)
+    return result
+
+
+def report_live(result: dict, json_path: Path | None, log=print) -> int:
+    """Scores and prints what `play_live` collected; writes it to `json_path` if given."""
     for field in ("dynamic", "summary"):
         result[field] = score(result["trials"], field)
         _print_score(field, result[field])
@@ -502,13 +519,40 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
     return 0
 
 
+def simulated_trials(users: int, seed: int, ranges: simdata.StyleRanges) -> list[Trial]:
+    """Returns one trial per gesture of `users` simulated users, each its own episode.
+
+    Each user performs every dynamic gesture once, in random order, one per appearance of the
+    hand (enter, an idle motion or none, the gesture from anywhere in the field with its
+    preparation and return, leave), in the user's style drawn from `ranges`.
+    """
+    trials = []
+    for user_seed in range(seed, seed + users):
+        scenario = simdata.user_scenario(user_seed, ranges, 1, statics=False)
+        person = next(iter(scenario.users))
+        steps = scenario.episodes[0].gestures
+        idle = [s for s in steps if s.gesture in IDLE_MOTIONS]
+        for i, step in enumerate(s for s in steps if s.gesture in DYNAMIC_GESTURES):
+            before = idle[i % 2:i % 2 + 1]  # every other trial starts with an idle motion
+            episode = Episode(gestures=[*before, step], pause_s=0.3)
+            one = Scenario(episodes=[episode], users=scenario.users,
+                           name=f"{person}-{step.gesture}", seed=user_seed * 10 + i)
+            frames = [(f.t, f.hands) for f in SimulatedUser(one, 60.0).frames() if f.hands]
+            t0 = frames[0][0]
+            trials.append(Trial(str(step.gesture), str(step.gesture), person,
+                                [(t - t0, hands) for t, hands in frames]))
+    return trials
+
+
 def _print_score(field: str, block: dict) -> None:
     where = "gestures/dynamic" if field == "dynamic" else "episode/summary g"
-    print(f"\n{where}: balanced accuracy over the swipes {block['balanced_accuracy']:.1%}")
+    print(f"\n{where}: balanced accuracy over {', '.join(block['recall'])} "
+          f"{block['balanced_accuracy']:.1%}")
     print(metrics.format_confusion(np.asarray(block["confusion"]), block["names"]))
     print("recall " + ", ".join(f"{n} {r:.0%}" for n, r in block["recall"].items()))
-    print(f"other gestures (no swipe of ours): {block['other_false']} of "
-          f"{block['other_trials']} trials reported a dynamic gesture")
+    if block["other_trials"]:
+        print(f"other gestures (no swipe of ours): {block['other_false']} of "
+              f"{block['other_trials']} trials reported a dynamic gesture")
 
 
 HABITS = ("length_mm", "roll_deg", "start_along", "duration_s", "peak_mm_s", "bow", "returned",

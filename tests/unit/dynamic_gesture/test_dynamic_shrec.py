@@ -6,6 +6,7 @@ import pytest
 from cbgo import keys, wire
 from cbgo.services.dynamic_gesture import realbench, shrec, simdata, train
 from cbgo.services.dynamic_gesture.stroke import Segmenter
+from cbgo.wire import DYNAMIC_GESTURES
 
 
 def upright_hand(palm_m=(0.427, -0.307, 0.488)) -> np.ndarray:
@@ -146,3 +147,22 @@ def test_leave_people_out_scores_each_person_with_a_library_learned_without_them
     assert finals.sum() == 4 and set(block["recall_finals"]) == set(shrec.SWIPE_DIRECTIONS)
     # each held-out person's one swipe, played as a stream STREAMS_PER_PERSON times
     assert block["streams"]["strokes"] == 4 * train.STREAMS_PER_PERSON
+
+
+def test_simulated_trials_give_each_user_every_dynamic_gesture_in_its_own_appearance():
+    trials = realbench.simulated_trials(1, 50_000, simdata.HELD_OUT)
+    assert sorted(t.truth for t in trials) == sorted(DYNAMIC_GESTURES)
+    for trial in trials:
+        frames = trial.frames()
+        assert frames[0][0] == 0.0 and all(hands for _, hands in frames)  # hand in view
+        gaps = np.diff([t for t, _ in frames])
+        assert gaps.max() < 0.1  # one appearance: the hand never leaves in between
+
+
+def test_the_live_score_counts_rotate_when_the_trials_hold_it():
+    rows = [{"truth": "swipe_up", "dynamic": "swipe_up"},
+            {"truth": "rotate", "dynamic": realbench.NOTHING},
+            {"truth": "none", "dynamic": "swipe_left"}]
+    block = realbench.score(rows, "dynamic")
+    assert block["recall"] == {"swipe_up": 1.0, "rotate": 0.0}
+    assert block["balanced_accuracy"] == 0.5 and block["other_false"] == 1
