@@ -40,7 +40,8 @@ Segmentation, per hand id (the paper's strokes, found where real people make the
 - a window that has not moved ``min_extent_mm`` from its start is a twitch, and one that
   never went faster than ``min_peak_speed_mm_s`` nor rolled faster than
   ``min_peak_roll_deg_s`` is a slow move (a preparation, re-positioning, drift): neither is
-  evaluated;
+  evaluated; while the stroke runs, its windows wait for ``mid_peak_speed_mm_s`` (or that
+  roll rate) instead;
 - whether a stroke is reported is the service's call: `ReturnFilter` drops the return move
   after a gesture.
 """
@@ -128,6 +129,10 @@ class SegmenterConfig:
         "SHREC'17 train split: 9 in 10 have a fifth of their samples above 280 mm/s)"))
     min_peak_roll_deg_s: float = field(default=120.0, metadata=_help(
         "the roll rate that makes a slow-moving window a possible rotate, deg/s"))
+    mid_peak_speed_mm_s: float = field(default=250.0, metadata=_help(
+        "a window of a running stroke is evaluated only once the palm moved this fast (or "
+        "rolled min_peak_roll_deg_s); its final window from min_peak_speed_mm_s: the early "
+        "windows of a brisk preparation or re-positioning look like a small swipe"))
     max_stroke_s: float = field(default=3.0, metadata=_help("longest stroke, s"))
     max_gap_s: float = field(default=0.3, metadata=_help(
         "a hand not seen for this long has disappeared, s"))
@@ -153,7 +158,7 @@ class SegmenterConfig:
             if not float(getattr(self, name)) > 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must be positive")
         for name in ("end_hold_s", "rest_s", "return_s", "min_extent_mm", "min_peak_speed_mm_s",
-                     "min_peak_roll_deg_s"):
+                     "min_peak_roll_deg_s", "mid_peak_speed_mm_s"):
             if float(getattr(self, name)) < 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
         if self.end_speed_mm_s > self.start_speed_mm_s:
@@ -516,10 +521,17 @@ class Segmenter:
         return window if self._worth_evaluating(window) else None
 
     def _worth_evaluating(self, window: Window) -> bool:
-        """Whether a window is more than a twitch, faster than a slow move and no exit."""
+        """Whether a window is more than a twitch, faster than a slow move and no exit.
+
+        A running stroke's windows must be faster (`mid_peak_speed_mm_s`) than its final one:
+        the early windows of slow moves just past 200 mm/s were most of the false triggers of
+        the simulated continuous streams (services/dynamic_gesture/README.md).
+        """
         c = self.config
         moved = float(np.linalg.norm(window.obs, axis=1).max()) >= c.min_extent_mm
-        fast = (window.peak_mm_s >= c.min_peak_speed_mm_s
+        speed = c.min_peak_speed_mm_s if window.final else max(c.min_peak_speed_mm_s,
+                                                                 c.mid_peak_speed_mm_s)
+        fast = (window.peak_mm_s >= speed
                 or window.peak_roll_deg_s >= c.min_peak_roll_deg_s)
         return moved and fast and not self._exit(window)
 

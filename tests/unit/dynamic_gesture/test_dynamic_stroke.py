@@ -134,6 +134,14 @@ def test_a_slow_move_is_not_evaluated(synth):
     assert finals(synth.feed(Segmenter(SegmenterConfig(min_peak_speed_mm_s=50.0)), slow))
 
 
+def test_a_brisk_move_below_the_running_threshold_is_evaluated_only_at_its_end(synth):
+    brisk = synth.trajectory([REST, ("move", 0.75, (0, 100, 0)), ("hold", 0.5)])  # 250 mm/s
+    windows = synth.feed(Segmenter(SegmenterConfig(mid_peak_speed_mm_s=300.0)), brisk)
+    assert len(windows) == 1 and windows[0].final
+    running = synth.feed(Segmenter(SegmenterConfig(mid_peak_speed_mm_s=200.0)), brisk)
+    assert len(running) > 1 and not running[0].final
+
+
 def test_a_still_hand_with_tremor_never_starts_a_stroke(synth):
     still = synth.trajectory([("hold", 6.0)], tremor=1.5, seed=3)
     assert synth.feed(Segmenter(), still) == []
