@@ -25,6 +25,10 @@ Guinevere set, ~115 Hz; a folder of person folders of ``NAME-TAKE.json``). Print
   gesture (`stream_figures`).
 - **Latency**: from a stroke's last sample (``window[1]``) to the arrival of its last window.
 
+Held-out simulated users get the same live treatment (`simulated_trials`, ``cbgo bench dynamic
+--live-sim N``): each performs every dynamic gesture once per appearance of the hand, rotate
+included, so the episode summary is scored on synthetic strokes too.
+
 People: ``--split train`` (the default) are SHREC'17's official train split's people, the only
 ones fitting, tuning and selection may look at. ``--split test`` is reserved for acceptance
 checks. The LeapJS set is never fitted on: all its people are scored (``--split`` is ignored).
