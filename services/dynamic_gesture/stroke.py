@@ -128,7 +128,8 @@ class SegmenterConfig:
         "slow move (a preparation, re-positioning, drift), not evaluated (real swipes of the "
         "SHREC'17 train split: 9 in 10 have a fifth of their samples above 280 mm/s)"))
     min_peak_roll_deg_s: float = field(default=120.0, metadata=_help(
-        "the roll rate that makes a slow-moving window a possible rotate, deg/s"))
+        "the roll rate that makes a slow-moving window a possible rotate, deg/s, when the "
+        "roll (as k*roll) is most of its motion"))
     mid_peak_speed_mm_s: float = field(default=250.0, metadata=_help(
         "a window of a running stroke is evaluated only once the palm moved this fast (or "
         "rolled min_peak_roll_deg_s); its final window from min_peak_speed_mm_s: the early "
@@ -525,15 +526,19 @@ class Segmenter:
 
         A running stroke's windows must be faster (`mid_peak_speed_mm_s`) than its final one:
         the early windows of slow moves just past 200 mm/s were most of the false triggers of
-        the simulated continuous streams (services/dynamic_gesture/README.md).
+        the simulated continuous streams. A slow window that rolls fast is a possible rotate
+        only when the roll is most of its motion: a palm rolling back while the hand moves
+        back slowly (a return, a re-positioning) is a slow move
+        (services/dynamic_gesture/README.md).
         """
         c = self.config
+        space = float(np.linalg.norm(window.obs[:, :3], axis=1).max())
         moved = float(np.linalg.norm(window.obs, axis=1).max()) >= c.min_extent_mm
         speed = c.min_peak_speed_mm_s if window.final else max(c.min_peak_speed_mm_s,
                                                                  c.mid_peak_speed_mm_s)
-        fast = (window.peak_mm_s >= speed
-                or window.peak_roll_deg_s >= c.min_peak_roll_deg_s)
-        return moved and fast and not self._exit(window)
+        rolling = (window.peak_roll_deg_s >= c.min_peak_roll_deg_s
+                   and float(np.abs(window.obs[:, 3]).max()) >= space)
+        return moved and (window.peak_mm_s >= speed or rolling) and not self._exit(window)
 
     @staticmethod
     def _exit(window: Window) -> bool:

@@ -38,7 +38,8 @@ def min_jerk(s):
 
 
 def trajectory(segments, rate=60.0, start=CENTRE, tremor=0.0, seed=0):
-    """Frames (t, pos, roll) from segments: ('hold', s), ('move', s, dxyz), ('roll', s, rad)."""
+    """Frames (t, pos, roll) from segments: ('hold', s), ('move', s, dxyz), ('roll', s, rad),
+    ('moveroll', s, dxyz, rad)."""
     rng = np.random.default_rng(seed)
     pos, roll, t, out = np.asarray(start, float), 0.0, 0.0, []
     for seg in segments:
@@ -49,12 +50,16 @@ def trajectory(segments, rate=60.0, start=CENTRE, tremor=0.0, seed=0):
                 p, r = pos + s * np.asarray(seg[2], float), roll
             elif seg[0] == "roll":
                 p, r = pos, roll + s * seg[2]
+            elif seg[0] == "moveroll":  # ('moveroll', s, dxyz, rad): both at once
+                p, r = pos + s * np.asarray(seg[2], float), roll + s * seg[3]
             else:
                 p, r = pos, roll
             out.append((t, p + rng.normal(0, tremor, 3), r))
             t += 1.0 / rate
-        pos, roll = (pos + np.asarray(seg[2], float), roll) if seg[0] == "move" else (
-            pos, roll + (seg[2] if seg[0] == "roll" else 0.0))
+        if seg[0] in ("move", "moveroll"):
+            pos = pos + np.asarray(seg[2], float)
+        if seg[0] in ("roll", "moveroll"):
+            roll += seg[-1]
     return out
 
 

@@ -142,6 +142,16 @@ def test_a_brisk_move_below_the_running_threshold_is_evaluated_only_at_its_end(s
     assert len(running) > 1 and not running[0].final
 
 
+def test_a_slow_move_whose_palm_rolls_fast_is_a_rotate_candidate_only_if_mostly_roll(synth):
+    # 120 mm at 188 mm/s peak, the palm rolling 90° back at 140°/s peak (k*roll 79 mm)
+    back = synth.trajectory([REST, ("moveroll", 1.2, (-120, 0, 0), math.radians(90)),
+                             ("hold", 0.5)])
+    assert synth.feed(Segmenter(), back) == []
+    twist = synth.trajectory([REST, ("moveroll", 1.2, (-30, 0, 0), math.radians(90)),
+                              ("hold", 0.5)])
+    assert finals(synth.feed(Segmenter(), twist))
+
+
 def test_a_still_hand_with_tremor_never_starts_a_stroke(synth):
     still = synth.trajectory([("hold", 6.0)], tremor=1.5, seed=3)
     assert synth.feed(Segmenter(), still) == []
