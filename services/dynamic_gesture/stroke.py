@@ -39,7 +39,8 @@ Segmentation, per hand id (the paper's strokes, found where real people make the
   stroke's slow hold) before the next one, except after a turn back;
 - a window that has not moved ``min_extent_mm`` from its start is a twitch, and one that
   never went faster than ``min_peak_speed_mm_s`` nor rolled faster than
-  ``min_peak_roll_deg_s`` is a slow move (a preparation, re-positioning, drift): neither is
+  ``min_peak_roll_deg_s`` with the roll most of its motion (a rotate) is a slow move (a
+  preparation, re-positioning, a return with the palm rolling back, drift): neither is
   evaluated; while the stroke runs, its windows wait for ``mid_peak_speed_mm_s`` (or that
   roll rate) instead;
 - whether a stroke is reported is the service's call: `ReturnFilter` drops the return move
