@@ -42,7 +42,7 @@ Segmentation, per hand id (the paper's strokes, found where real people make the
   ``min_peak_roll_deg_s`` with the roll most of its motion (a rotate) is a slow move (a
   preparation, re-positioning, a return with the palm rolling back, drift): neither is
   evaluated; while the stroke runs, its windows wait for ``mid_peak_speed_mm_s`` (or that
-  roll rate) instead, and for ``mid_min_extent_mm`` of extent;
+  roll rate) instead;
 - whether a stroke is reported is the service's call: `ReturnFilter` drops the return move
   after a gesture.
 """
@@ -135,10 +135,6 @@ class SegmenterConfig:
         "a window of a running stroke is evaluated only once the palm moved this fast (or "
         "rolled min_peak_roll_deg_s); its final window from min_peak_speed_mm_s: the early "
         "windows of a brisk preparation or re-positioning look like a small swipe"))
-    mid_min_extent_mm: float = field(default=80.0, metadata=_help(
-        "a window of a running stroke is evaluated only once it has moved this far from its "
-        "start (mm, roll as k*roll); its final window from min_extent_mm: a preparation's or "
-        "a return's first centimetres look like the start of a swipe"))
     max_stroke_s: float = field(default=3.0, metadata=_help("longest stroke, s"))
     max_gap_s: float = field(default=0.3, metadata=_help(
         "a hand not seen for this long has disappeared, s"))
@@ -164,7 +160,7 @@ class SegmenterConfig:
             if not float(getattr(self, name)) > 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must be positive")
         for name in ("end_hold_s", "rest_s", "return_s", "min_extent_mm", "min_peak_speed_mm_s",
-                     "min_peak_roll_deg_s", "mid_peak_speed_mm_s", "mid_min_extent_mm"):
+                     "min_peak_roll_deg_s", "mid_peak_speed_mm_s"):
             if float(getattr(self, name)) < 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
         if self.end_speed_mm_s > self.start_speed_mm_s:
@@ -511,7 +507,7 @@ class Segmenter:
         if len(track.stroke) < self.config.min_samples or track.since_eval < self.eval_every:
             return None
         window = self._window(track, track.stroke, final=False)
-        if not self.worth_evaluating(window):
+        if not self._worth_evaluating(window):
             return None  # not yet more than a twitch or a slow move: try at the next sample
         track.since_eval = 0
         return window
@@ -524,26 +520,21 @@ class Segmenter:
         if len(samples) < self.config.min_samples:
             return None  # too short to be a gesture (a twitch)
         window = self._window(track, samples, final=True, reason=reason)
-        return window if self.worth_evaluating(window) else None
+        return window if self._worth_evaluating(window) else None
 
-    def worth_evaluating(self, window: Window) -> bool:
+    def _worth_evaluating(self, window: Window) -> bool:
         """Whether a window is more than a twitch, faster than a slow move and no exit.
 
         A running stroke's windows must be faster (`mid_peak_speed_mm_s`) than its final one:
         the early windows of slow moves just past 200 mm/s were most of the false triggers of
-        the simulated continuous streams. They must also have gone farther
-        (`mid_min_extent_mm`): the first few centimetres of a real preparation or return,
-        evaluated, were often read as a swipe, and a real swipe gets its answer later in its
-        stroke anyway. A slow window that rolls fast is a possible rotate
+        the simulated continuous streams. A slow window that rolls fast is a possible rotate
         only when the roll is most of its motion: a palm rolling back while the hand moves
         back slowly (a return, a re-positioning) is a slow move
         (services/dynamic_gesture/README.md).
         """
         c = self.config
         space = float(np.linalg.norm(window.obs[:, :3], axis=1).max())
-        extent = c.min_extent_mm if window.final else max(c.min_extent_mm,
-                                                          c.mid_min_extent_mm)
-        moved = float(np.linalg.norm(window.obs, axis=1).max()) >= extent
+        moved = float(np.linalg.norm(window.obs, axis=1).max()) >= c.min_extent_mm
         speed = c.min_peak_speed_mm_s if window.final else max(c.min_peak_speed_mm_s,
                                                                  c.mid_peak_speed_mm_s)
         rolling = (window.peak_roll_deg_s >= c.min_peak_roll_deg_s

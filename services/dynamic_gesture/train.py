@@ -13,8 +13,7 @@
    people are never read.
 3. One ProMP template per gesture is learned from its demonstrations (`classifier.Template`).
 4. The shared weights of the conditional logit (`classifier.NeuralCalibration`) are fitted on
-   every window of a stroke (mid-stroke and final, the early ones the service holds back
-   included: `LEARNING`) of the calibration users —
+   every window the service would evaluate (mid-stroke and final) of the calibration users —
    other simulated people — and of the real people, gestures and non-gestures alike, so the
    probabilities (``none`` included) are calibrated, to a prior in which the "none" windows
    together weigh `NONE_WEIGHT` of the gestures'. With ``--folds N`` the real people are
@@ -54,7 +53,6 @@ from cbgo.services.dynamic_gesture.stroke import (
     GESTURE_P,
     RATE_HZ,
     ReturnFilter,
-    Segmenter,
     SegmenterConfig,
     reported,
 )
@@ -73,11 +71,6 @@ CALIB_SEED = 2000
 NONE_WEIGHT = 0.15
 RULES = ("all", "finals")  # how a trial is answered: by every reported window, or finals only
 STREAMS_PER_PERSON = 2  # continuous streams of each held-out person (`realbench.person_streams`)
-# The library learns from every window of a stroke, the early ones the service holds back
-# (`SegmenterConfig.mid_min_extent_mm`) included: learned without them, the final windows of
-# small swipes lost their gesture (held-out simulated users, `cbgo bench dynamic --users 16
-# --no-latency --streams-sim 0`: 148 of 160 strokes right, against 153).
-LEARNING = SegmenterConfig(mid_min_extent_mm=0.0)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -199,7 +192,6 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     streams = []
     rng = np.random.default_rng(TRAIN_SEED)
     config = SegmenterConfig(return_s=return_s)
-    served = Segmenter(config)
     for k in range(folds):
         held = set(people[k::folds])
         train_people = shrec.people_data([r for r in recordings if r[0].person not in held],
@@ -209,8 +201,7 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
             if seq.person not in held:
                 continue
             other += seq.name not in shrec.SWIPE_DIRECTIONS
-            evaluated = [w for w in windows if served.worth_evaluating(w)]
-            for rule, answer in trial_answers(classifier, evaluated, return_s).items():
+            for rule, answer in trial_answers(classifier, windows, return_s).items():
                 if seq.name in shrec.SWIPE_DIRECTIONS:
                     confusion[rule][names.index(seq.name), names.index(answer)] += 1
                 else:
@@ -240,16 +231,15 @@ def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
     """Runs the whole training; returns templates, calibration and a summary."""
     t0 = time.perf_counter()
     return_s = SegmenterConfig().return_s
-    sim_train = simdata.generate(list(range(seed, seed + users)), simdata.TRAIN, reps, jobs,
-                                 config=LEARNING)
+    sim_train = simdata.generate(list(range(seed, seed + users)), simdata.TRAIN, reps, jobs)
     calib_seed = seed + CALIB_SEED
     sim_calib = simdata.generate(list(range(calib_seed, calib_seed + calib_users)),
-                                 simdata.TRAIN, reps, jobs, config=LEARNING)
+                                 simdata.TRAIN, reps, jobs)
     log(f"simulated {users} training and {calib_users} calibration users in "
         f"{time.perf_counter() - t0:.1f} s")
     recordings = []
     if real is not None:
-        recordings = shrec.sequence_windows(shrec.read_split(real, "train"), LEARNING)
+        recordings = shrec.sequence_windows(shrec.read_split(real, "train"))
         log(f"segmented {len(recordings)} real recordings of the SHREC'17 train split "
             f"({len({r[0].person for r in recordings})} people)")
     summary: dict = {"users": users, "calib_users": calib_users, "reps": reps, "seed": seed,

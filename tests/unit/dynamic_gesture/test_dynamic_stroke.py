@@ -142,17 +142,6 @@ def test_a_brisk_move_below_the_running_threshold_is_evaluated_only_at_its_end(s
     assert len(running) > 1 and not running[0].final
 
 
-def test_a_running_stroke_is_evaluated_once_it_has_gone_far_enough(synth):
-    short = synth.trajectory([REST, ("move", 0.4, (70, 0, 0)), ("hold", 0.5)])  # 330 mm/s peak
-    windows = synth.feed(Segmenter(), short)
-    assert len(windows) == 1 and windows[0].final
-    early = synth.feed(Segmenter(SegmenterConfig(mid_min_extent_mm=0.0)), short)
-    assert len(early) > 1 and not early[0].final
-    swipe = synth.feed(Segmenter(), synth.trajectory([REST, SWIPE_UP]))
-    running = [w for w in swipe if not w.final]
-    assert running and all(np.linalg.norm(w.obs, axis=1).max() >= 80.0 for w in running)
-
-
 def test_a_slow_move_whose_palm_rolls_fast_is_a_rotate_candidate_only_if_mostly_roll(synth):
     # 120 mm at 188 mm/s peak, the palm rolling 90° back at 140°/s peak (k*roll 79 mm)
     back = synth.trajectory([REST, ("moveroll", 1.2, (-120, 0, 0), math.radians(90)),
