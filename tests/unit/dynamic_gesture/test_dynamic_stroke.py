@@ -7,6 +7,7 @@ import pytest
 
 from cbgo.errors import ConfigError
 from cbgo.hands.model import HandShape, build_hand, neutral_pose
+from cbgo.services.dynamic_gesture import stroke
 from cbgo.services.dynamic_gesture.stroke import (
     DEFAULT_CENTRE_MM,
     ReturnFilter,
@@ -140,6 +141,15 @@ def test_a_brisk_move_below_the_running_threshold_is_evaluated_only_at_its_end(s
     assert len(windows) == 1 and windows[0].final
     running = synth.feed(Segmenter(SegmenterConfig(mid_peak_speed_mm_s=200.0)), brisk)
     assert len(running) > 1 and not running[0].final
+
+
+def test_a_slow_move_with_a_tremor_is_not_evaluated_though_its_top_speed_passes(synth,
+                                                                                monkeypatch):
+    # 190 mm in 2 s (178 mm/s at most), a tremor of 2 mm: a few samples pass 200 mm/s
+    slow = synth.trajectory([REST, ("move", 2.0, (-190, 0, 0)), REST], tremor=2.0, seed=0)
+    assert synth.feed(Segmenter(), slow) == []
+    monkeypatch.setattr(stroke, "FAST_PERCENTILE", 100.0)  # the top speed, as before
+    assert finals(synth.feed(Segmenter(), slow))
 
 
 def test_a_slow_move_whose_palm_rolls_fast_is_a_rotate_candidate_only_if_mostly_roll(synth):
