@@ -40,10 +40,9 @@ Segmentation, per hand id (the paper's strokes, found where real people make the
 - a window that has not moved ``min_extent_mm`` from its start is a twitch, and one that
   never went faster than ``min_peak_speed_mm_s`` (in a tenth of its samples: `FAST_PERCENTILE`)
   nor rolled faster than ``min_peak_roll_deg_s`` with the roll most of its motion (a rotate)
-  is a slow move (a
-  preparation, re-positioning, a return with the palm rolling back, drift): neither is
-  evaluated; while the stroke runs, its windows wait for ``mid_peak_speed_mm_s`` (or that
-  roll rate) instead;
+  is a slow move (a preparation, re-positioning, a return with the palm rolling back, drift):
+  neither is evaluated; while the stroke runs, its windows wait for ``mid_peak_speed_mm_s``
+  (or that roll rate) instead;
 - whether a stroke is reported is the service's call: `ReturnFilter` drops the return move
   after a gesture.
 """
