@@ -71,6 +71,7 @@ EXTENT_FLOOR_MM = 1.0
 N_THETA = 9
 SPEED_FLOOR_MM_S = 10.0
 DTW_MODES = ("exact", "numpy", "fastdtw")
+MIRROR_X = np.array([-1.0, 1.0, 1.0, 1.0])  # x negated; y, z and the anatomical roll kept
 
 
 @dataclass
@@ -88,6 +89,10 @@ class Template:
         source: "default" (shipped) or "user" (taught with `cbgo gestures record`).
         user: who demonstrated it, if known.
         created: Unix time it was learned.
+        mirror: the gesture that is this one's mirror image across the body's midline
+            (swipe_left's is swipe_right, swipe_up's itself), for a template learned in the
+            right hand's space (`Classifier` mirrors a left hand's windows into it); None: a
+            template matched as performed, whichever the hand (a taught gesture).
     """
 
     name: str
@@ -100,11 +105,13 @@ class Template:
     source: str = "default"
     user: str | None = None
     created: float = field(default_factory=time.time)
+    mirror: str | None = None
 
     @classmethod
     def learn(cls, name: str, demos: list[np.ndarray], durations: list[float] | None = None,
               pose_changes: list[float] | None = None, source: str = "default",
-              user: str | None = None, rng_seed: int = 0) -> Template:
+              user: str | None = None, rng_seed: int = 0, mirror: str | None = None
+              ) -> Template:
         """Learns a template from demonstrations (n_i, 4).
 
         Raises:
@@ -117,7 +124,7 @@ class Template:
         return cls(name, promp, trajectory, scale,
                    float(np.median(durations)) if durations else 0.0,
                    float(np.median(pose_changes)) if pose_changes else 0.0, len(demos), source,
-                   user)
+                   user, mirror=mirror)
 
     @property
     def extent_mm(self) -> float:
@@ -135,7 +142,7 @@ class Template:
                 "trajectory": np.round(self.trajectory, 4).tolist(), "scale": self.scale,
                 "duration_s": self.duration_s, "pose_change": self.pose_change,
                 "n_demos": self.n_demos, "source": self.source, "user": self.user,
-                "created": self.created}
+                "created": self.created, **({"mirror": self.mirror} if self.mirror else {})}
 
     @classmethod
     def from_dict(cls, data: dict) -> Template:
@@ -153,7 +160,8 @@ class Template:
                        float(data.get("duration_s", 0.0)), float(data.get("pose_change", 0.0)),
                        int(data.get("n_demos", 0)),
                        str(data.get("source", "default")), data.get("user"),
-                       float(data.get("created", 0.0)))
+                       float(data.get("created", 0.0)),
+                       str(data["mirror"]) if data.get("mirror") else None)
         except (KeyError, TypeError) as e:
             raise ValueError(f"malformed template: {e}") from None
 
@@ -185,9 +193,35 @@ def path_of(obs: np.ndarray) -> float:
     return max(extent_of(obs), float(np.linalg.norm(np.diff(obs, axis=0), axis=1).sum()))
 
 
+def mirrored(obs: np.ndarray) -> np.ndarray:
+    """Returns an observation mirrored across the body's midline (x negated).
+
+    A left hand's stroke becomes the right hand's mirror image of it. The roll keeps its sign:
+    it is anatomical on either hand (`stroke.palm_roll`).
+    """
+    return obs * MIRROR_X
+
+
 def normalised(obs: np.ndarray) -> np.ndarray:
     """Returns a trajectory relative to its start and scaled to unit extent (its shape)."""
     return (obs - obs[0]) / extent_of(obs)
+
+
+def mirror_rows(templates: list[Template]) -> np.ndarray:
+    """Returns, per template, the index of its mirror image's template (-1: none).
+
+    A template counts as learned in the right hand's space only with its mirror image in the
+    library, itself so learned (both default swipes, say): a user's swipe_left replacing the
+    default one leaves swipe_right matched as performed too, so no left-hand window is ever
+    scored against half a pair.
+    """
+    index = {t.name: i for i, t in enumerate(templates)}
+    rows = np.full(len(templates), -1)
+    for i, t in enumerate(templates):
+        j = index.get(t.mirror) if t.mirror else None
+        if j is not None and templates[j].mirror == t.name:
+            rows[i] = j
+    return rows
 
 
 @dataclass
@@ -491,6 +525,8 @@ class Classifier:
         self.extents = np.array([t.extent_mm for t in templates])
         self.pose_changes = np.array([t.pose_change for t in templates])
         self.reaches = np.array([reach_of(t.trajectory) for t in templates])
+        self.mirror_rows = mirror_rows(templates)
+
 
     @property
     def implementation(self) -> str:
@@ -515,14 +551,27 @@ class Classifier:
                          for t, extent in zip(self.templates, self.extents, strict=True)])
 
     def features(self, obs: np.ndarray, final: bool = True, pose_change: float = 0.0,
-                 peak_speed: float = 0.0) -> np.ndarray:
-        """Returns the window's (K + 1, N_THETA) feature rows (see `probabilities`)."""
+                 peak_speed: float = 0.0, side: str = "right") -> np.ndarray:
+        """Returns the window's (K + 1, N_THETA) feature rows (see `probabilities`).
+
+        A left hand's window is matched with the templates learned in the right hand's space
+        mirrored: the row of swipe_left is swipe_right's row of the mirrored window.
+        """
         obs = obs - obs[0]
+        rows = self._rows(obs, final, pose_change, peak_speed)
+        handed = self.mirror_rows >= 0
+        if side == "left" and handed.any():
+            rows[:-1][handed] = self._rows(mirrored(obs), final, pose_change,
+                                           peak_speed)[self.mirror_rows[handed]]
+        return rows
+
+    def _rows(self, obs: np.ndarray, final: bool, pose_change: float, peak_speed: float
+              ) -> np.ndarray:
         return features(obs, self.distances(obs), self.scales, self.log_likelihoods(obs),
                         np.abs(pose_change - self.pose_changes), final, peak_speed, self.reaches)
 
     def probabilities(self, obs: np.ndarray, final: bool = True, pose_change: float = 0.0,
-                      peak_speed: float = 0.0) -> np.ndarray:
+                      peak_speed: float = 0.0, side: str = "right") -> np.ndarray:
         """Returns (K + 1,) probabilities over `names` (templates, then none); they sum to 1.
 
         Args:
@@ -530,13 +579,15 @@ class Classifier:
             final: whether the window ends its stroke (else it is one evaluated mid-stroke).
             pose_change: the window's change of hand shape (`stroke.Window.pose_change`).
             peak_speed: the stroke's highest speed (`stroke.Window.peak_speed`), mm/s.
+            side: the hand's side ("left" or "right").
         """
         return self.calibration.probabilities(self.features(obs, final, pose_change,
-                                                            peak_speed))
+                                                            peak_speed, side))
 
     def window_features(self, window) -> np.ndarray:
         """Returns the feature rows of a `stroke.Window`."""
-        return self.features(window.obs, window.final, window.pose_change, window.peak_speed)
+        return self.features(window.obs, window.final, window.pose_change, window.peak_speed,
+                             window.side)
 
     def classify(self, window) -> np.ndarray:
         """Returns the probabilities of a `stroke.Window`."""

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -41,12 +42,14 @@ from cbgo import metrics
 from cbgo.config import data_dir
 from cbgo.services.dynamic_gesture import realbench, shrec, simdata
 from cbgo.services.dynamic_gesture.classifier import (
+    MIRROR_X,
     NONE,
     Calibration,
     Classifier,
     NeuralCalibration,
     Template,
     fit_neural_calibration,
+    mirrored,
 )
 from cbgo.services.dynamic_gesture.library import save_default, trained_path
 from cbgo.services.dynamic_gesture.stroke import (
@@ -69,6 +72,12 @@ CALIB_SEED = 2000
 # users' strokes: above 0.15 the simulated users' small swipes go to "none", below it the
 # other gestures report more swipes for little gain.
 NONE_WEIGHT = 0.15
+MIRROR = {"swipe_left": "swipe_right", "swipe_right": "swipe_left", "swipe_up": "swipe_up",
+          "swipe_down": "swipe_down", "rotate": "rotate"}
+"""Each default gesture's mirror image across the body's midline: the templates are learned in
+the right hand's space (real people's recordings are of right hands), and a left hand's strokes
+are matched mirrored (`classifier.Template.mirror`). The roll is anatomical, so rotate is its
+own mirror image."""
 RULES = ("all", "finals")  # how a trial is answered: by every reported window, or finals only
 STREAMS_PER_PERSON = 2  # continuous streams of each held-out person (`realbench.person_streams`)
 
@@ -91,12 +100,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def demonstrations(users: list[simdata.UserData]) -> dict[str, list]:
-    """Returns, per gesture, the end-of-stroke windows labelled with it."""
+    """Returns, per gesture, the end-of-stroke windows labelled with it.
+
+    In the right hand's space: a left hand's swipe_left is kept as the right hand's
+    swipe_right it mirrors (`MIRROR`).
+    """
     out: dict[str, list] = {g: [] for g in DYNAMIC_GESTURES}
     for user in users:
         for lw in user.windows:
             if lw.window.final and lw.truth in out:
-                out[lw.truth].append(lw.window)
+                if lw.window.side == "left":
+                    out[MIRROR[lw.truth]].append(replace(lw.window, obs=mirrored(lw.window.obs),
+                                                         side="right"))
+                else:
+                    out[lw.truth].append(lw.window)
     return out
 
 
@@ -112,7 +129,7 @@ def learn_templates(users: list[simdata.UserData]) -> list[Template]:
             raise ValueError(f"no demonstration of {name}; simulate more users")
         templates.append(Template.learn(name, [w.obs for w in windows],
                                         [w.t_end - w.t_start for w in windows],
-                                        [w.pose_change for w in windows]))
+                                        [w.pose_change for w in windows], mirror=MIRROR[name]))
     return templates
 
 
@@ -180,13 +197,15 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     """Scores each group of real people with a library learned without them.
 
     Each trial (recording) is answered twice: by every reported window, and by the final
-    windows only. Each held-out person also plays `STREAMS_PER_PERSON` continuous streams of
-    their recordings, the hand never leaving, through the service's logic offline
-    (`realbench.replay_stream`).
+    windows only. The swipes are answered again mirrored, as a left hand makes them (the
+    recordings are all of right hands). Each held-out person also plays `STREAMS_PER_PERSON`
+    continuous streams of their recordings, the hand never leaving, through the service's
+    logic offline (`realbench.replay_stream`).
     """
     people = sorted({seq.person for seq, _, _ in recordings})
     names = [*shrec.SWIPE_DIRECTIONS, "rotate", "nothing"]
     confusion = {rule: np.zeros((len(names), len(names)), dtype=int) for rule in RULES}
+    left_right = {rule: {n: [0, 0] for n in shrec.SWIPE_DIRECTIONS} for rule in RULES}
     other = 0
     other_false = dict.fromkeys(RULES, 0)
     streams = []
@@ -206,6 +225,11 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
                     confusion[rule][names.index(seq.name), names.index(answer)] += 1
                 else:
                     other_false[rule] += answer != "nothing"
+            if seq.name in shrec.SWIPE_DIRECTIONS:
+                lefts = [left_handed(w) for w in windows]
+                for rule, answer in trial_answers(classifier, lefts, return_s).items():
+                    left_right[rule][MIRROR[seq.name]][0] += answer == MIRROR[seq.name]
+                    left_right[rule][MIRROR[seq.name]][1] += 1
         for person in sorted(held):
             own = [seq for seq, _, _ in recordings if seq.person == person]
             streams += [realbench.replay_stream(classifier, frames,
@@ -221,8 +245,16 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
         suffix = "" if rule == "all" else "_finals"
         out.update({f"confusion{suffix}": c.tolist(), f"recall{suffix}": recall,
                     f"balanced_accuracy{suffix}": float(np.mean(list(recall.values()))),
-                    f"other_reported{suffix}": other_false[rule]})
+                    f"other_reported{suffix}": other_false[rule],
+                    f"left_hand_balanced_accuracy{suffix}": float(np.mean(
+                        [right / max(n, 1) for right, n in left_right[rule].values()]))})
     return out
+
+
+def left_handed(window):
+    """Returns a right hand's window as a left hand makes the same stroke (mirrored)."""
+    origin = None if window.origin is None else window.origin * MIRROR_X[:3]
+    return replace(window, obs=mirrored(window.obs), side="left", origin=origin)
 
 
 def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
@@ -275,6 +307,9 @@ def print_leave_people_out(block: dict) -> None:
         print(f"other gestures (grab, tap, expand, pinch, shake): "
               f"{block[f'other_reported{suffix}']} of {block['other_trials']} recordings "
               f"reported a dynamic gesture")
+        if f"left_hand_balanced_accuracy{suffix}" in block:
+            print(f"the same swipes mirrored, as a left hand makes them: balanced accuracy "
+                  f"{block[f'left_hand_balanced_accuracy{suffix}']:.1%}")
     s = block.get("streams")
     if s and s["strokes"]:
         print(f"\ncontinuous streams of the held-out people ({STREAMS_PER_PERSON} each, 10 "

@@ -16,6 +16,8 @@ from cbgo.services.dynamic_gesture.classifier import (
     features,
     fit_calibration,
     fit_neural_calibration,
+    mirror_rows,
+    mirrored,
     softmax_rows,
 )
 from cbgo.services.dynamic_gesture.library import (
@@ -84,6 +86,54 @@ def test_a_template_learned_from_a_few_takes_is_recognised_and_serialisable():
     classifier = Classifier([again, other], calibration)
     p = classifier.probabilities(line((0.7, 0.7, 0, 0), rng=rng))
     assert classifier.names[int(p.argmax())] == "swipe_diag"
+
+
+
+def bowed(direction, bow, roll, rng):
+    """A stroke along `direction` that bows towards `bow` and rolls: not mirror-symmetric."""
+    s = np.linspace(0, 1, 14)[:, None]
+    out = line(direction, n=14, rng=rng) + np.sin(np.pi * s) * np.asarray(bow, float) * 40
+    out[:, 3] += s[:, 0] * roll
+    return out - out[0]
+
+
+def test_a_left_hands_stroke_is_scored_as_its_mirror_image_by_a_right_hand(shipped):
+    swap = [shipped.names.index(n) for n in ("swipe_up", "swipe_down", "swipe_right",
+                                             "swipe_left", "rotate", NONE)]
+    rng = np.random.default_rng(5)
+    for direction, bow, roll in [((1, 0, 0, 0), (0, 1, 1, 0), 30.0),
+                                 ((-1, 0.2, 0, 0), (0, -1, 0.5, 0), -40.0),
+                                 ((0.1, 1, 0, 0), (1, 0, 1, 0), 20.0)]:
+        right = bowed(direction, bow, roll, rng)
+        p_right = shipped.probabilities(right, side="right")
+        p_left = shipped.probabilities(mirrored(right), side="left")
+        assert p_left == pytest.approx(p_right[swap], abs=1e-9)
+        # unmirrored, the left hand would be scored by the right hand's templates as they are
+        assert not np.allclose(shipped.probabilities(mirrored(right), side="right"),
+                               p_right[swap], atol=1e-3)
+
+
+def test_only_whole_mirror_pairs_are_matched_mirrored_taught_gestures_as_performed():
+    rng = np.random.default_rng(6)
+    _, calibration, _ = read_default()
+
+    def learn(name, direction, mirror=None):
+        return Template.learn(name, [bowed(direction, (0, 1, 0, 0), 10.0, rng)
+                                     for _ in range(3)], mirror=mirror)
+    left = learn("swipe_left", (-1, 0, 0, 0), "swipe_right")
+    right = learn("swipe_right", (1, 0, 0, 0), "swipe_left")
+    up = learn("swipe_up", (0, 1, 0, 0), "swipe_up")
+    wave = learn("wave", (1, 1, 0, 0))
+    assert mirror_rows([left, right, up, wave]).tolist() == [1, 0, 2, -1]
+    taught_left = learn("swipe_left", (-1, 0, 0, 0))  # a user's, replacing the default one
+    assert mirror_rows([taught_left, right, up]).tolist() == [-1, -1, 2]
+    classifier = Classifier([taught_left, right, wave], calibration)
+    stroke = bowed((1, 0.3, 0, 0), (0, 1, 1, 0), 25.0, rng)
+    assert classifier.probabilities(stroke, side="left") == pytest.approx(
+        classifier.probabilities(stroke, side="right"))
+    again = Template.from_dict(json.loads(json.dumps(right.to_dict())))
+    assert again.mirror == "swipe_left"
+    assert Template.from_dict(json.loads(json.dumps(wave.to_dict()))).mirror is None
 
 
 def separable_windows(seed: int, n: int = 300):

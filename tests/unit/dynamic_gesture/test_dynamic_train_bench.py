@@ -1,6 +1,7 @@
 """Training and benchmark plumbing on a tiny simulated data set (the real runs are CLI verbs)."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -37,6 +38,18 @@ def test_templates_and_calibration_learned_from_a_tiny_set_load_and_classify(one
     assert np.allclose(probs, [calibration.probabilities(f) for f in feats], atol=1e-4)
     assert np.allclose(np.sum(probs, 1), 1.0)
     assert json.loads(path.read_text())["training"] == {"users": 1} == data["training"]
+
+
+
+def test_a_left_hands_demonstrations_are_learned_in_the_right_hands_space(one_user):
+    lefts = [replace(lw, window=replace(lw.window, side="left")) for lw in one_user.windows]
+    right = train.demonstrations([one_user])
+    left = train.demonstrations([simdata.UserData("lefty", {}, lefts)])
+    assert [w.side for ws in left.values() for w in ws] == ["right"] * 5
+    for name, mirror in train.MIRROR.items():
+        assert len(left[mirror]) == len(right[name]) == 1
+        assert np.allclose(left[mirror][0].obs, right[name][0].obs * [-1, 1, 1, 1])
+    assert {t.name: t.mirror for t in train.learn_templates([one_user])} == train.MIRROR
 
 
 def test_the_benchmark_scores_final_windows_and_counts_missed_strokes(one_user):
