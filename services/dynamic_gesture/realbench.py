@@ -559,7 +559,7 @@ def _print_score(field: str, block: dict) -> None:
               f"{block['other_trials']} trials reported a dynamic gesture")
 
 
-HABITS = ("length_mm", "roll_deg", "start_along", "duration_s", "peak_mm_s", "bow", "returned",
+HABITS = ("length_mm", "roll_deg", "roll_across_deg", "start_along", "duration_s", "peak_mm_s", "bow", "returned",
           "return_speed_ratio", "return_length_ratio", "over_preparation")
 
 
@@ -568,7 +568,8 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
     """Measures each swipe stroke of one recording, the way real and simulated are compared.
 
     Per final window labelled a swipe: its length along the swipe's direction, the palm roll
-    over it, where it started along its direction relative to `middle` (the recording's median
+    over it (and again for swipes across the body only: a right hand's to the left, a left
+    hand's to the right), where it started along its direction relative to `middle` (the recording's median
     palm position) in units of its length, its duration and peak speed, its bow (largest
     sideways deviation / length), and whether a stroke followed it within 1.5 s (a return)
     and that stroke's peak speed relative to it; when that stroke reverses it (`reverses`),
@@ -587,7 +588,10 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
         start = w.origin if w.origin is not None else middle
         after = [v for v, _ in finals[i + 1:] if v.t_start - w.t_end <= 1.5]
         before = [v for v, _ in finals[:i] if w.t_start - v.t_end <= 1.5][-1:]
-        out.append({"length_mm": length, "roll_deg": float(np.degrees(w.obs[-1, 3] / roll_scale)),
+        roll = float(np.degrees(w.obs[-1, 3] / roll_scale))
+        across = d[0] != 0 and (d[0] < 0) == (w.side == "right")
+        out.append({"length_mm": length, "roll_deg": roll,
+                    "roll_across_deg": roll if across else np.nan,
                     "start_along": float((start - middle) @ d / length),
                     "duration_s": w.t_end - w.t_start, "peak_mm_s": w.peak_speed,
                     "bow": float(np.abs(xyz - np.outer(xyz @ d, d)).max() / length),

@@ -50,6 +50,7 @@ class StyleRanges:
     stroke_lead: tuple[Interval, ...] = ((0.2, 0.8),)
     rest_s: tuple[Interval, ...] = ((0.0, 0.3),)
     swipe_roll_deg: tuple[Interval, ...] = ((15.0, 60.0),)
+    medial_roll_deg: tuple[Interval, ...] = ((30.0, 70.0),)
     return_slowdown: tuple[Interval, ...] = ((0.8, 2.0),)
 
     def draw(self, rng: np.random.Generator, name: str) -> tuple[UserStyle, tuple[float, float]]:
@@ -64,6 +65,7 @@ class StyleRanges:
                           curvature=pick(self.curvature), tremor_mm=pick(self.tremor_mm),
                           stroke_lead=pick(self.stroke_lead), rest_s=pick(self.rest_s),
                           swipe_roll_deg=pick(self.swipe_roll_deg),
+                          medial_roll_deg=pick(self.medial_roll_deg),
                           return_slowdown=pick(self.return_slowdown))
         angle = pick(self.angle_deg)
         return style, (angle * 0.93, angle * 1.07)

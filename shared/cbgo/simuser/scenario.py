@@ -65,6 +65,7 @@ class UserStyle:
     stroke_spread_mm: float = 30.0  # where that middle is: SD around the field centre, mm
     rest_s: float = 0.12        # longest rest before a stroke (drawn from 0..rest_s)
     swipe_roll_deg: float = 45.0  # spread (SD) of the palm roll during a horizontal swipe
+    medial_roll_deg: float = 50.0  # mean palm roll (thumb side down) swiping across the body
     return_slowdown: float = 1.3  # the return takes this much longer than the stroke
 
     def __post_init__(self):
@@ -74,7 +75,8 @@ class UserStyle:
             if not 0.05 < float(getattr(self, name)) < 20:
                 raise ConfigError(f"{name}={getattr(self, name)} is out of range")
         for name in ("curvature", "tremor_mm", "pose_variation", "gaze_noise_m", "stroke_lead",
-                     "stroke_spread_mm", "rest_s", "swipe_roll_deg", "return_slowdown"):
+                     "stroke_spread_mm", "rest_s", "swipe_roll_deg", "medial_roll_deg",
+                     "return_slowdown"):
             if float(getattr(self, name)) < 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
 

@@ -52,6 +52,22 @@ def test_a_left_hands_demonstrations_are_learned_in_the_right_hands_space(one_us
     assert {t.name: t.mirror for t in train.learn_templates([one_user])} == train.MIRROR
 
 
+
+@pytest.mark.parametrize("side, medial, lateral", [("right", "swipe_left", "swipe_right"),
+                                                   ("left", "swipe_right", "swipe_left")])
+def test_a_simulated_palm_turns_to_face_where_it_swipes_across_the_body(side, medial, lateral):
+    ranges = replace(simdata.TRAIN, left_share=float(side == "left"),
+                     swipe_roll_deg=((0.0, 0.0),), medial_roll_deg=((50.0, 50.0),))
+    user = simdata.run_user(11, ranges, reps=2, statics=False)
+    roll = {}
+    for lw in user.windows:
+        if lw.window.final and lw.truth in (medial, lateral):
+            roll.setdefault(lw.truth, []).append(np.degrees(lw.window.obs[-1, 3] / 50.0))
+    assert user.style["side"] == side
+    assert np.median(roll[medial]) == pytest.approx(50.0, abs=15.0)
+    assert np.median(roll[lateral]) == pytest.approx(0.0, abs=15.0)
+
+
 def test_the_benchmark_scores_final_windows_and_counts_missed_strokes(one_user):
     classifier = Library(DEFAULT_PATH, None).load().classifier()
     figures = bench.score(classifier, [one_user], [])
