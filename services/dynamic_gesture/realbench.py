@@ -559,8 +559,8 @@ def _print_score(field: str, block: dict) -> None:
               f"{block['other_trials']} trials reported a dynamic gesture")
 
 
-HABITS = ("length_mm", "roll_deg", "roll_across_deg", "start_along", "duration_s", "peak_mm_s", "bow", "returned",
-          "return_speed_ratio", "return_length_ratio", "over_preparation")
+HABITS = ("length_mm", "roll_deg", "roll_across_deg", "start_along", "duration_s", "peak_mm_s",
+          "bow", "returned", "return_speed_ratio", "return_length_ratio", "over_preparation")
 
 
 def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: float
@@ -569,13 +569,13 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
 
     Per final window labelled a swipe: its length along the swipe's direction, the palm roll
     over it (and again for swipes across the body only: a right hand's to the left, a left
-    hand's to the right), where it started along its direction relative to `middle` (the recording's median
-    palm position) in units of its length, its duration and peak speed, its bow (largest
-    sideways deviation / length), and whether a stroke followed it within 1.5 s (a return)
-    and that stroke's peak speed relative to it; when that stroke reverses it (`reverses`),
-    how far it went relative to the swipe, and when a stroke within 1.5 s before the swipe
-    reverses it (a preparation), how much farther the swipe went: what `ReturnFilter.farther`
-    is chosen on.
+    hand's to the right), where it started along its direction relative to `middle` (the
+    recording's median palm position) in units of its length, its duration and peak speed, its
+    bow (largest sideways deviation / length), and whether a stroke followed it within 1.5 s (a
+    return) and that stroke's peak speed relative to it; when that stroke reverses it
+    (`reverses`), how far it went relative to the swipe, and when a stroke within 1.5 s before
+    the swipe reverses it (a preparation), how much farther the swipe went: what
+    `ReturnFilter.farther` is chosen on.
     """
     finals = [(w, t) for w, t in zip(windows, truths, strict=True) if w.final]
     out = []
