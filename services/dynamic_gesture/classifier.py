@@ -527,7 +527,6 @@ class Classifier:
         self.reaches = np.array([reach_of(t.trajectory) for t in templates])
         self.mirror_rows = mirror_rows(templates)
 
-
     @property
     def implementation(self) -> str:
         """Which DTW computes the distances: "fastdtw-compiled", "numpy" or "fastdtw-approx"."""
