@@ -38,6 +38,7 @@ Examples::
     cbgo bench dynamic
     cbgo bench dynamic --real ~/.cache/cbgo/shrec17/datasetShrec
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --per-class 0   # real Leap recordings
+    cbgo bench dynamic --real ~/.cache/cbgo/guinevere --mirror   # the same as left hands
     cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec
     cbgo bench dynamic --live-sim 16           # simulated users through live services
     cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
@@ -101,6 +102,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="recordings per swipe, and of the other gestures; 0: all [12]")
     real.add_argument("--streams", type=int, default=3,
                       help="continuous streams (one person each, hand never leaves) [3]")
+    real.add_argument("--mirror", action="store_true",
+                      help="with --real: play every recording mirrored, as the other hand "
+                           "makes it (x negated, sides swapped, swipe_left scored as "
+                           "swipe_right): the left-hand path on real motion, both sets being "
+                           "right hands")
     real.add_argument("--realism", type=Path, metavar="DIR", default=None,
                       help="instead: compare the simulated users' swipe habits with the real "
                            "train split's in this datasetShrec folder")
@@ -273,7 +279,7 @@ def run(args: argparse.Namespace) -> int:
     """Runs the three parts and prints their figures (or the real-data bench)."""
     if args.real is not None:
         return realbench.run_real(args.real, args.split, args.per_class, args.streams,
-                                  args.seed, args.json)
+                                  args.seed, args.json, args.mirror)
     if args.live_sim > 0:
         trials = realbench.simulated_trials(args.live_sim, args.seed,
                                             simdata.RANGES[args.ranges])

@@ -72,6 +72,12 @@ N_THETA = 9
 SPEED_FLOOR_MM_S = 10.0
 DTW_MODES = ("exact", "numpy", "fastdtw")
 MIRROR_X = np.array([-1.0, 1.0, 1.0, 1.0])  # x negated; y, z and the anatomical roll kept
+MIRROR = {"swipe_left": "swipe_right", "swipe_right": "swipe_left", "swipe_up": "swipe_up",
+          "swipe_down": "swipe_down", "rotate": "rotate"}
+"""Each default gesture's mirror image across the body's midline: the default templates are
+learned in the right hand's space (real people's recordings are of right hands), and a left
+hand's strokes are matched mirrored (`Template.mirror`). The roll is anatomical, so rotate is
+its own mirror image."""
 
 
 @dataclass

@@ -25,6 +25,11 @@ Guinevere set, ~115 Hz; a folder of person folders of ``NAME-TAKE.json``). Print
   gesture (`stream_figures`).
 - **Latency**: from a stroke's last sample (``window[1]``) to the arrival of its last window.
 
+With ``--mirror`` every recording is played mirrored across the body's midline (x → −x,
+sides swapped; `cbgo.hands.model.mirrored_hand`), as the other hand makes it, a swipe_left
+scored as a swipe_right: both data sets hold right hands only, so this is how the services'
+left-hand path is measured on real motion.
+
 Held-out simulated users get the same live treatment (`simulated_trials`, ``cbgo bench dynamic
 --live-sim N``): each performs every dynamic gesture once per appearance of the hand, rotate
 included, so the episode summary is scored on synthetic strokes too.
@@ -53,7 +58,9 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, metrics, wire
+from cbgo.hands.model import mirrored_hand
 from cbgo.services.dynamic_gesture import leapjs, shrec, simdata
+from cbgo.services.dynamic_gesture.classifier import MIRROR
 from cbgo.services.dynamic_gesture.stroke import (
     GESTURE_P,
     REVERSE_MIN_MM,
@@ -110,6 +117,23 @@ def leapjs_trial(recording: leapjs.Recording) -> Trial:
     truth = recording.gesture if recording.gesture in leapjs.SWIPES else "none"
     name = recording.gesture + (f"#{recording.variant}" if recording.variant else "")
     return Trial(truth, name, recording.person, recording)
+
+
+def mirrored_trial(trial: Trial) -> Trial:
+    """Returns a trial as the other hand makes it.
+
+    Its frames mirrored (x → −x, sides swapped), a swipe_left becoming a swipe_right
+    (`classifier.MIRROR`).
+    """
+    frames = [(t, [mirrored_hand(h) for h in hands]) for t, hands in trial.frames()]
+    return Trial(MIRROR.get(trial.truth, trial.truth), f"{trial.gesture} mirrored", trial.person,
+                 frames)
+
+
+def mirrored_stream(frames: list[tuple], spans: list[tuple]) -> tuple[list[tuple], list[tuple]]:
+    """Returns a stream's frames and (name, t0, t1) spans as the other hand makes them."""
+    return ([(t, [mirrored_hand(h) for h in hands]) for t, hands in frames],
+            [(MIRROR.get(name, name), t0, t1) for name, t0, t1 in spans])
 
 
 def pick_trials(trials: list[Trial], per_class: int, seed: int) -> list[Trial]:
@@ -474,8 +498,8 @@ def stream_sets(device: str, trials: list[Trial], sequences: list[shrec.Sequence
 
 
 def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
-             json_path: Path | None, log=print) -> int:
-    """The whole real-data bench (see the module docstring)."""
+             json_path: Path | None, mirror: bool = False, log=print) -> int:
+    """The whole real-data bench (see the module docstring); `mirror`: as left hands."""
     device, all_trials, sequences = real_trials(root, split)
     if device == "shrec17" and split == "test":
         log("note: the test split's people are reserved for acceptance checks; never tune on "
@@ -483,6 +507,10 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
     trials = pick_trials(all_trials, per_class, seed)
     streams_played = stream_sets(device, all_trials, sequences, streams, seed + 1)
     where = f"{device}'s {split} split" if device == "shrec17" else device
+    if mirror:
+        trials = [mirrored_trial(t) for t in trials]
+        streams_played = [mirrored_stream(*s) for s in streams_played]
+        where += ", mirrored into the other hand"
     return report_live(play_live(trials, streams_played, device, where, log), json_path, log)
 
 

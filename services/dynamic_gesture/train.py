@@ -42,6 +42,7 @@ from cbgo import metrics
 from cbgo.config import data_dir
 from cbgo.services.dynamic_gesture import realbench, shrec, simdata
 from cbgo.services.dynamic_gesture.classifier import (
+    MIRROR,
     MIRROR_X,
     NONE,
     Calibration,
@@ -72,12 +73,6 @@ CALIB_SEED = 2000
 # users' strokes: above 0.15 the simulated users' small swipes go to "none", below it the
 # other gestures report more swipes for little gain.
 NONE_WEIGHT = 0.15
-MIRROR = {"swipe_left": "swipe_right", "swipe_right": "swipe_left", "swipe_up": "swipe_up",
-          "swipe_down": "swipe_down", "rotate": "rotate"}
-"""Each default gesture's mirror image across the body's midline: the templates are learned in
-the right hand's space (real people's recordings are of right hands), and a left hand's strokes
-are matched mirrored (`classifier.Template.mirror`). The roll is anatomical, so rotate is its
-own mirror image."""
 RULES = ("all", "finals")  # how a trial is answered: by every reported window, or finals only
 STREAMS_PER_PERSON = 2  # continuous streams of each held-out person (`realbench.person_streams`)
 

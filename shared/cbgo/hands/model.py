@@ -501,3 +501,29 @@ def build_hand(shape: HandShape, pose: HandPose, palm_position_mm: Any,
     return build_hands([shape], [pose], np.asarray(palm_position_mm, dtype=np.float64)[None],
                        np.asarray(palm_velocity_mm_s, dtype=np.float64)[None], [hand_id],
                        confidence)[0]
+
+
+MIRROR_VECTORS = ("palm_position", "palm_velocity", "palm_normal", "direction", "wrist_position")
+
+
+def mirrored_hand(hand: dict) -> dict:
+    """Returns a contract hand mirrored across the body's midline (x → −x).
+
+    The other hand doing the mirror image of the same thing, as this module builds a left hand
+    from a right. Positions and directions are negated in x, the side is swapped, and a bone's
+    ``rotation`` becomes ``M R M`` (quaternion ``[qx, −qy, −qz, qw]``). Used to measure how the
+    services serve left hands on recordings of right ones (``cbgo bench dynamic --real DIR
+    --mirror``).
+    """
+
+    def flip(v: list) -> list:
+        return [-float(v[0]), float(v[1]), float(v[2])]
+
+    out = {**hand, "side": "left" if hand["side"] == "right" else "right"}
+    out.update({k: flip(hand[k]) for k in MIRROR_VECTORS if k in hand})
+    out["fingers"] = [{**finger, "bones": [
+        {**bone, "prev_joint": flip(bone["prev_joint"]), "next_joint": flip(bone["next_joint"]),
+         **({"rotation": [bone["rotation"][0], -bone["rotation"][1], -bone["rotation"][2],
+                          bone["rotation"][3]]} if "rotation" in bone else {})}
+        for bone in finger["bones"]]} for finger in hand["fingers"]]
+    return out

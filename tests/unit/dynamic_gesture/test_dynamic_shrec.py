@@ -95,6 +95,20 @@ def test_a_continuous_stream_keeps_the_hand_in_view_between_recordings(dataset):
     assert spans[1][1] > spans[0][2]
 
 
+
+def test_a_recording_mirrored_is_the_other_hands_swipe_the_other_way(dataset):
+    (seq,) = shrec.read_split(dataset, "train")
+    trial = realbench.mirrored_trial(realbench.shrec_trial(seq))
+    assert trial.truth == "swipe_left" and trial.gesture == "swipe_right mirrored"
+    frames = trial.frames()
+    assert {h["side"] for _, hands in frames for h in hands} == {"left"}
+    palm_x = [hands[0]["palm_position"][0] for _, hands in frames if hands]
+    assert palm_x[-1] - palm_x[0] == pytest.approx(-200.0, abs=5.0)
+    stream = realbench.mirrored_stream(*realbench.shrec_stream([seq]))
+    assert [name for name, _, _ in stream[1]] == ["swipe_left"]
+    assert {h["side"] for _, hands in stream[0] for h in hands} == {"left"}
+
+
 def test_stream_figures_count_recalled_strokes_and_each_false_stroke_once():
     strokes = [("swipe_up", 1.0, 2.0), ("swipe_left", 5.0, 6.0)]
     reports = [("swipe_up", 1.2, 1.6, "s1"), ("swipe_up", 1.2, 1.9, "s1"),  # recalled twice
@@ -147,6 +161,8 @@ def test_leave_people_out_scores_each_person_with_a_library_learned_without_them
     assert finals.sum() == 4 and set(block["recall_finals"]) == set(shrec.SWIPE_DIRECTIONS)
     # each held-out person's one swipe, played as a stream STREAMS_PER_PERSON times
     assert block["streams"]["strokes"] == 4 * train.STREAMS_PER_PERSON
+    assert 0.0 <= block["left_hand_balanced_accuracy"] <= 1.0  # the swipes mirrored
+    assert 0.0 <= block["left_hand_balanced_accuracy_finals"] <= 1.0
 
 
 def test_simulated_trials_give_each_user_every_dynamic_gesture_in_its_own_appearance():

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from cbgo.services.dynamic_gesture import bench, simdata, train
+from cbgo.services.dynamic_gesture.classifier import MIRROR
 from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, read_default, save_default
 from cbgo.wire import DYNAMIC_GESTURES
 
@@ -46,10 +47,10 @@ def test_a_left_hands_demonstrations_are_learned_in_the_right_hands_space(one_us
     right = train.demonstrations([one_user])
     left = train.demonstrations([simdata.UserData("lefty", {}, lefts)])
     assert [w.side for ws in left.values() for w in ws] == ["right"] * 5
-    for name, mirror in train.MIRROR.items():
+    for name, mirror in MIRROR.items():
         assert len(left[mirror]) == len(right[name]) == 1
         assert np.allclose(left[mirror][0].obs, right[name][0].obs * [-1, 1, 1, 1])
-    assert {t.name: t.mirror for t in train.learn_templates([one_user])} == train.MIRROR
+    assert {t.name: t.mirror for t in train.learn_templates([one_user])} == MIRROR
 
 
 

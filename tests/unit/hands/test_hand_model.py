@@ -17,6 +17,7 @@ from cbgo.hands.model import (
     blend,
     build_hand,
     build_hands,
+    mirrored_hand,
     neutral_pose,
 )
 from cbgo.hands.poses import STATIC_GESTURES, gesture_mean, gesture_pose
@@ -100,6 +101,27 @@ def test_a_left_hand_is_the_mirror_image_of_the_right_hand():
     assert joints(left) == pytest.approx(mirrored)
     assert F.hand_features(left) == pytest.approx(F.mirror_features(F.hand_features(right)))
     assert left["grab_strength"] == right["grab_strength"]
+
+
+
+def test_a_mirrored_hand_is_the_other_hand_built_in_the_mirrored_place():
+    pose = gesture_pose("thumbsup", np.random.default_rng(3))
+    right = build_hand(HandShape.default(side="right"), pose, PALM, (300.0, -20.0, 5.0))
+    left = build_hand(HandShape.default(side="left"), pose, (-PALM[0], *PALM[1:]),
+                      (-300.0, -20.0, 5.0))
+    again = mirrored_hand(right)
+    wire.validate(frame_of([again]), wire.HANDS_FRAME)
+    twice = mirrored_hand(again)
+    assert again["side"] == "left" and twice["side"] == "right"
+    assert joints(twice) == pytest.approx(joints(right))
+    for key in ("palm_position", "palm_velocity", "palm_normal", "direction",
+                "wrist_position"):
+        assert again[key] == pytest.approx(left[key]), key
+    assert joints(again) == pytest.approx(joints(left))
+    for f_again, f_left in zip(again["fingers"], left["fingers"], strict=True):
+        for b_again, b_left in zip(f_again["bones"], f_left["bones"], strict=True):
+            q, p = np.array(b_again["rotation"]), np.array(b_left["rotation"])
+            assert min(np.abs(q - p).max(), np.abs(q + p).max()) < 1e-6  # q and -q: one turn
 
 
 def test_grab_strength_is_high_for_grab_and_low_for_five_and_pinch_strength_high_for_pinch():
