@@ -532,6 +532,7 @@ class Classifier:
         self.pose_changes = np.array([t.pose_change for t in templates])
         self.reaches = np.array([reach_of(t.trajectory) for t in templates])
         self.mirror_rows = mirror_rows(templates)
+        self.handed = self.mirror_rows >= 0  # templates learned in the right hand's space
 
     @property
     def implementation(self) -> str:
@@ -564,10 +565,9 @@ class Classifier:
         """
         obs = obs - obs[0]
         rows = self._rows(obs, final, pose_change, peak_speed)
-        handed = self.mirror_rows >= 0
-        if side == "left" and handed.any():
-            rows[:-1][handed] = self._rows(mirrored(obs), final, pose_change,
-                                           peak_speed)[self.mirror_rows[handed]]
+        if side == "left" and self.handed.any():
+            rows[:-1][self.handed] = self._rows(mirrored(obs), final, pose_change,
+                                                peak_speed)[self.mirror_rows[self.handed]]
         return rows
 
     def _rows(self, obs: np.ndarray, final: bool, pose_change: float, peak_speed: float

@@ -105,8 +105,7 @@ def demonstrations(users: list[simdata.UserData]) -> dict[str, list]:
         for lw in user.windows:
             if lw.window.final and lw.truth in out:
                 if lw.window.side == "left":
-                    out[MIRROR[lw.truth]].append(replace(lw.window, obs=mirrored(lw.window.obs),
-                                                         side="right"))
+                    out[MIRROR[lw.truth]].append(mirrored_window(lw.window))
                 else:
                     out[lw.truth].append(lw.window)
     return out
@@ -221,7 +220,7 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
                 else:
                     other_false[rule] += answer != "nothing"
             if seq.name in shrec.SWIPE_DIRECTIONS:
-                lefts = [left_handed(w) for w in windows]
+                lefts = [mirrored_window(w) for w in windows]
                 for rule, answer in trial_answers(classifier, lefts, return_s).items():
                     left_right[rule][MIRROR[seq.name]][0] += answer == MIRROR[seq.name]
                     left_right[rule][MIRROR[seq.name]][1] += 1
@@ -246,10 +245,11 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     return out
 
 
-def left_handed(window):
-    """Returns a right hand's window as a left hand makes the same stroke (mirrored)."""
+def mirrored_window(window):
+    """Returns a window as the other hand makes the mirrored stroke (x negated, side swapped)."""
     origin = None if window.origin is None else window.origin * MIRROR_X[:3]
-    return replace(window, obs=mirrored(window.obs), side="left", origin=origin)
+    return replace(window, obs=mirrored(window.obs), origin=origin,
+                   side="left" if window.side == "right" else "right")
 
 
 def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,

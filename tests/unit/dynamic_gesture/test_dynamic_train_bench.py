@@ -53,7 +53,6 @@ def test_a_left_hands_demonstrations_are_learned_in_the_right_hands_space(one_us
     assert {t.name: t.mirror for t in train.learn_templates([one_user])} == MIRROR
 
 
-
 @pytest.mark.parametrize("side, medial, lateral", [("right", "swipe_left", "swipe_right"),
                                                    ("left", "swipe_right", "swipe_left")])
 def test_a_simulated_palm_turns_to_face_where_it_swipes_across_the_body(side, medial, lateral):
