@@ -27,6 +27,14 @@ Conversion (every assumption written down):
   after ``#`` (``swipe_left#palm``, ``swipe_up#index``). The swipes map to ours; ``turn_*``
   (a palm turned like a key) is left out of the swipe scores, as SHREC'17's rotations are;
   every other gesture is a hard "no gesture" case.
+
+**Left hands.** Both sets above are right hands. The same repository's history holds another
+LeapJS set, ``leapmotion-all`` (commit ``bec964af``, folder
+``backend/src/datasets/dynamic/leapmotion-all``; no licence file either), in which 16 people
+each made a "previous" and a "next" gesture of their own choosing, some with the left hand.
+`LEFT_HAND_SWIPES` names its ten clean left-hand swipes (8 people) and the direction each
+palm goes; ``python -m cbgo.services.dynamic_gesture.leapjs left-hands SRC DST`` writes them
+as a set of the layout above (left-hand frames only), for ``cbgo bench dynamic --real DST``.
 """
 
 from __future__ import annotations
@@ -37,6 +45,20 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from cbgo.wire import BONE_TYPES, FINGER_TYPES, SCHEMA_VERSION
+
+LEFT_HAND_SWIPES = {
+    "precedent/participant-12-12": "swipe_right", "precedent/participant-14-10": "swipe_right",
+    "precedent/participant-2-6": "swipe_right", "precedent/participant-7-9": "swipe_right",
+    "precedent/participant-5-1": "swipe_left", "suivant/participant-11-10": "swipe_left",
+    "suivant/participant-12-14": "swipe_left", "suivant/participant-13-1": "swipe_left",
+    "suivant/participant-19-8": "swipe_left", "suivant/participant-7-18": "swipe_left"}
+"""The ``leapmotion-all`` recordings whose left hand swipes, and where its palm goes.
+
+Its own labels are commands ("precedent", "suivant": previous, next) whose gesture each person
+chose, so the direction is read from the left hand's palm path: from first to last frame it
+goes 187–438 mm along x, and its range along x (222–447 mm) is wider than along y or z (at
+most 0.8 of it). Left out: the left-hand recordings that go mostly along z, move under 100 mm,
+last under 0.3 s, or jump by 600 mm between two hand ids."""
 
 SWIPES = ("swipe_right", "swipe_left", "swipe_up", "swipe_down")
 NOT_SCORED = ("turn_clockwise", "turn_counter_clockwise")
@@ -129,6 +151,61 @@ def to_hand(hand: dict, pointables: list[dict]) -> dict:
         "fingers": _fingers(own)}
 
 
+def left_hand_only(recording: dict) -> dict:
+    """Returns a parsed LeapJS recording with its right hands (and their fingers) removed."""
+    frames = []
+    for frame in recording["data"]:
+        hands = [h for h in frame["hands"] if h.get("type") == "left"]
+        ids = {h["id"] for h in hands}
+        frames.append({**frame, "hands": hands,
+                       "pointables": [p for p in frame.get("pointables", [])
+                                      if p.get("handId") in ids]})
+    return {**recording, "data": frames}
+
+
+def arrange_left_hands(src: Path, dst: Path) -> int:
+    """Writes `LEFT_HAND_SWIPES` of a ``leapmotion-all`` folder as a set `read_set` reads.
+
+    ``dst/participant-P/swipe_X-T.json``, left-hand frames only. Returns how many it wrote.
+
+    Raises:
+        FileNotFoundError: a recording of `LEFT_HAND_SWIPES` is not under `src`.
+    """
+    for name, gesture in LEFT_HAND_SWIPES.items():
+        stem = Path(name).name  # participant-P-T
+        person, _, take = stem.rpartition("-")
+        out = Path(dst) / person / f"{gesture}-{take}.json"
+        out.parent.mkdir(parents=True, exist_ok=True)
+        recording = json.loads((Path(src) / f"{name}.json").read_text())
+        out.write_text(json.dumps(left_hand_only(recording)))
+    return len(LEFT_HAND_SWIPES)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``left-hands SRC DST``: see the module docstring."""
+    import argparse  # noqa: PLC0415
+
+    parser = argparse.ArgumentParser(
+        prog="python -m cbgo.services.dynamic_gesture.leapjs",
+        description="Real Leap Motion recordings (LeapJS frames) for the dynamic-gesture bench.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    left = sub.add_parser("left-hands", help="write the left-hand swipes of leapmotion-all "
+                                             "as a set for `cbgo bench dynamic --real`")
+    left.add_argument("src", type=Path, help="the leapmotion-all folder (precedent/, suivant/)")
+    left.add_argument("dst", type=Path, nargs="?",
+                      default=Path.home() / ".cache" / "cbgo" / "leapmotion-left",
+                      help="where to write it [~/.cache/cbgo/leapmotion-left]")
+    args = parser.parse_args(argv)
+    try:
+        count = arrange_left_hands(args.src, args.dst)
+    except FileNotFoundError as exc:
+        print(f"error: {exc}")
+        return 2
+    print(f"wrote {count} left-hand swipes under {args.dst}; "
+          f"cbgo bench dynamic --real {args.dst} --per-class 0")
+    return 0
+
+
 def to_frames(recording: dict) -> list[dict]:
     """Returns a parsed LeapJS recording (``{"data": [frame, ...]}``) as hands/frame messages."""
     frames = recording["data"]
@@ -139,3 +216,7 @@ def to_frames(recording: dict) -> list[dict]:
         out.append({"v": SCHEMA_VERSION, "ts": (float(frame["timestamp"]) - t0) / 1e6,
                     "seq": i, "source": "replay", "device": "leapjs", "hands": hands})
     return out
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

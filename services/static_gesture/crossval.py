@@ -111,7 +111,9 @@ def summarise(parts: list[dict]) -> dict:
         ``{classes, recall, balanced_accuracy, accuracy, n, per_person, confusion, names,
         rejection: {pose: rate}, rejection_overall, rejection_n, rejection_seen: {pose: rate}
         (unknown poses other people showed in training), rejection_seen_overall,
-        by_confidence: [...]}``.
+        by_confidence: [...], tracker_agrees: {share, balanced, balanced_otherwise}}``:
+        the last, the frames whose tracker's finger flags show their pose
+        (`mmhgr.Frames.tracker_agrees`) apart from the others.
     """
     pose = np.concatenate([p["frames"].pose for p in parts])
     label = np.concatenate([p["frames"].labels() for p in parts])
@@ -139,6 +141,10 @@ def summarise(parts: list[dict]) -> dict:
     seen = np.isin(pose, [q for half in POSE_HALVES for q in half]) & ~held
     rejection_seen = {str(q): float(rejected[seen & (pose == q)].mean())
                       for q in np.unique(pose[seen])}
+    agrees = np.concatenate([p["frames"].tracker_agrees() for p in parts])
+    tracker = {"share": float(agrees[known].mean()),
+               "balanced": _balanced(correct, label, agrees, classes),
+               "balanced_otherwise": _balanced(correct, label, known & ~agrees, classes)}
     by_conf = []
     for lo, hi in zip(CONFIDENCE_BINS[:-1], CONFIDENCE_BINS[1:], strict=True):
         sel = known & (conf >= lo) & (conf < hi)
@@ -159,7 +165,14 @@ def summarise(parts: list[dict]) -> dict:
             "rejection": rejection, "rejection_overall": float(rejected[held].mean()),
             "rejection_n": int(held.sum()), "rejection_seen": rejection_seen,
             "rejection_seen_overall": float(rejected[seen].mean()) if seen.any() else None,
-            "by_confidence": by_conf}
+            "by_confidence": by_conf, "tracker_agrees": tracker}
+
+
+def _balanced(correct: np.ndarray, label: np.ndarray, rows: np.ndarray, classes: list[str]
+              ) -> float | None:
+    """Returns the mean recall over `classes` of the selected rows (None if a class has none)."""
+    recalls = [correct[rows & (label == g)] for g in classes]
+    return float(np.mean([r.mean() for r in recalls])) if all(len(r) for r in recalls) else None
 
 
 def tracker_styles(user: np.ndarray, confidence: np.ndarray) -> dict[str, list[int]]:
@@ -213,6 +226,13 @@ def print_figures(fig: dict) -> None:
     if fig.get("pitched"):
         print("  the same frames with the hand pitched about the palm: " + ", ".join(
             f"{float(d):+.0f}° {a:.2%}" for d, a in fig["pitched"].items()))
+    t = fig.get("tracker_agrees")
+    if t and t["balanced"] is not None:
+        other = t["balanced_otherwise"]
+        print(f"  frames whose tracker's own finger flags (index..pinky) show the pose "
+              f"({t['share']:.1%} of them): balanced accuracy {t['balanced']:.2%}; the others, "
+              f"where the reported skeleton shows other fingers: "
+              + (f"{other:.2%}" if other is not None else "-"))
     print("accuracy by tracking confidence: " + "; ".join(
         f"[{b['lo']:.2f}, {b['hi']:.2f}) {b['accuracy']:.1%} (n={b['n']})" if b["n"] else
         f"[{b['lo']:.2f}, {b['hi']:.2f}) - (n=0)" for b in fig["by_confidence"]))

@@ -58,6 +58,11 @@ POSES = ("C", "L", "down", "fist_moved", "five", "four", "hang", "heavy", "index
          "palm", "palm_m", "palm_u", "three", "two", "up")
 POSE_MAP = {"fist_moved": "grab", "index": "point", "two": "two", "three": "three",
             "four": "four", "five": "five", "up": "thumbsup"}
+POSE_FINGERS = {"fist_moved": (0, 0, 0, 0), "up": (0, 0, 0, 0), "index": (1, 0, 0, 0),
+                "two": (1, 1, 0, 0), "three": (1, 1, 1, 0), "four": (1, 1, 1, 1),
+                "five": (1, 1, 1, 1)}
+"""Which of index, middle, ring and pinky each gesture pose holds out (the thumb left aside:
+the tracker's thumb flag is as often set as not in a fist)."""
 AMBIGUOUS = ("palm", "palm_m", "palm_u")
 UNKNOWN_POSES = tuple(p for p in POSES if p not in POSE_MAP and p not in AMBIGUOUS)
 SESSIONS = ("train_pose", "test_pose")
@@ -146,6 +151,20 @@ class Frames:
     def labels(self) -> np.ndarray:
         """Returns each row's cbgo gesture name, ``""`` for unknown and ambiguous poses."""
         return np.array([POSE_MAP.get(p, "") for p in self.pose])
+
+    def tracker_agrees(self) -> np.ndarray:
+        """Returns per row whether the tracker's own finger flags show its pose's fingers.
+
+        The Leap software flags each finger it tracked as extended or not. Where its index..
+        pinky flags differ from what the pose holds out (`POSE_FINGERS`), the skeleton it
+        reported shows another pose: a tracking error, or a loosely made pose. False for the
+        poses outside `POSE_FINGERS`.
+        """
+        agrees = np.zeros(len(self), dtype=bool)
+        for pose, fingers in POSE_FINGERS.items():
+            rows = self.pose == pose
+            agrees[rows] = (self.extended[rows][:, 1:] == np.array(fingers, dtype=bool)).all(1)
+        return agrees
 
 
 def convert(src: Path, out: Path, progress: bool = True) -> int:

@@ -142,3 +142,30 @@ def test_a_blended_hand_turns_with_unit_vectors_half_way():
     assert np.allclose(mid["palm_position"], [50.0, 200.0, 0.0])
     assert np.isclose(np.linalg.norm(mid["palm_normal"]), 1.0)
     assert np.allclose(mid["palm_normal"], np.array([1.0, -1.0, 0.0]) / np.sqrt(2))
+
+
+def test_the_left_hand_swipes_of_leapmotion_all_become_a_set_of_left_hands(tmp_path):
+    src = tmp_path / "leapmotion-all"
+    for name in leapjs.LEFT_HAND_SWIPES:
+        frames = []
+        for i, palm in enumerate(swipe_palms(n=20)):
+            left, left_fingers = leapjs_hand(palm, hand_id=3, side="left")
+            right, right_fingers = leapjs_hand(palm + [0, 0, 100], hand_id=4)
+            frames.append({"id": i, "timestamp": round(i * 1e6 / 115), "hands": [left, right],
+                           "pointables": left_fingers + right_fingers})
+        (src / name).parent.mkdir(parents=True, exist_ok=True)
+        (src / f"{name}.json").write_text(json.dumps({"frames": len(frames), "data": frames}))
+    assert leapjs.main(["left-hands", str(src), str(tmp_path / "left")]) == 0
+    recordings = leapjs.read_set(tmp_path / "left")
+    assert len(recordings) == len(leapjs.LEFT_HAND_SWIPES)
+    assert {(r.person, r.gesture, r.take) for r in recordings} == {
+        (name.split("/")[1].rpartition("-")[0], gesture, int(name.rpartition("-")[2]))
+        for name, gesture in leapjs.LEFT_HAND_SWIPES.items()}
+    for frame in recordings[0].frames():
+        assert [(h["side"], h["id"], len(h["fingers"])) for h in frame["hands"]] == [
+            ("left", 3, 5)]
+
+
+def test_a_missing_leapmotion_all_recording_is_named(tmp_path, capsys):
+    assert leapjs.main(["left-hands", str(tmp_path), str(tmp_path / "left")]) == 2
+    assert "participant-" in capsys.readouterr().out

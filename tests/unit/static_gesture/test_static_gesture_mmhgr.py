@@ -17,16 +17,16 @@ def _matrix(tag, v):
             f'<data>\n  {v[0]:.6e} {v[1]:.6e} {v[2]:.6e}</data></{tag}>\n')
 
 
-def frame_xml(hand, confidence=0.9):
+def frame_xml(hand, confidence=0.9, extended=(1, 1, 1, 1, 1)):
     """One frame file as the data set writes it (OpenCV storage, first image's hand)."""
     side = hand["side"].capitalize()
     fingers = ""
-    for name, finger in zip(("Thumb", "Index", "Middle", "Ring", "Pinky"), hand["fingers"],
-                            strict=True):
+    for name, finger, flag in zip(("Thumb", "Index", "Middle", "Ring", "Pinky"),
+                                  hand["fingers"], extended, strict=True):
         b = finger["bones"]
         points = (b[1]["prev_joint"], b[2]["prev_joint"], b[3]["prev_joint"],
                   b[3]["next_joint"])
-        fingers += (f"<{name}>\n<Type>0</Type>\n<isExtended>1</isExtended>\n"
+        fingers += (f"<{name}>\n<Type>0</Type>\n<isExtended>{flag}</isExtended>\n"
                     + "".join(_matrix(t, p) for t, p in zip(_POINTS, points, strict=True))
                     + f"</{name}>\n")
     hand_xml = (f"<{side}>\n" + _matrix("Center", hand["palm_position"])
@@ -146,4 +146,24 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert set(fig["pitched"]) == {"-30.0", "30.0"}
     assert fig["open_set"]["rejection_overall"] >= fig["rejection_overall"]
     assert fig["open_set"]["accuracy"] <= fig["accuracy"]
+    # The test frames flag every finger extended: only five's show their pose.
+    assert fig["tracker_agrees"]["share"] == pytest.approx(1 / 3)
+    assert fig["tracker_agrees"]["balanced"] is None  # grab and thumbsup have no such frame
     crossval.print_figures(fig)
+
+
+@pytest.mark.parametrize(("pose", "flags", "agrees"), [
+    ("three", (0, 1, 1, 1, 0), True),
+    ("three", (1, 1, 1, 1, 0), True),    # the thumb's flag is left aside
+    ("three", (0, 1, 1, 1, 1), False),   # the skeleton holds the pinky out: a four
+    ("fist_moved", (1, 0, 0, 0, 0), True),
+    ("index", (0, 1, 1, 0, 0), False),
+    ("ok", (0, 0, 1, 1, 1), False),      # not a gesture pose
+])
+def test_a_frame_agrees_with_its_pose_when_the_trackers_finger_flags_show_it(
+        tmp_path, pose, flags, agrees):
+    folder = tmp_path / "src" / "user_01" / "train_pose" / pose
+    folder.mkdir(parents=True)
+    (folder / "frame_1.xml").write_text(frame_xml(_hand("five", "right", 1), extended=flags))
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    assert mmhgr.load(tmp_path / "c.npz").tracker_agrees().tolist() == [agrees]
