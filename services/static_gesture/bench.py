@@ -24,7 +24,8 @@ Figures (goals from issue 4 in brackets):
    the model's own training recipe (its metadata's options) cross-validated by person
    (``--folds``; 25 = leave-one-person-out): per-class recall and balanced accuracy [≥ 97 %],
    per person, confusion; rejection of unknown poses held out of training — answered ``none``
-   or with top probability < 0.5 [≥ 90 %]; accuracy by tracking confidence
+   or with top probability < 0.5 [≥ 90 %]; accuracy by tracking confidence, and on the
+   frames whose tracker's own finger flags show their pose apart from the others
    (``cbgo.services.static_gesture.crossval``). ``--no-crossval`` skips it (it trains one model
    per fold: minutes).
 5. **Latency** through Zenoh: a router, leap-bridge (``static-all`` looping at ``--rate-hz``)

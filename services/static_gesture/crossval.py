@@ -15,7 +15,9 @@ counts as rejected when the model answers ``none`` or its top probability is bel
 
 Figures: per-class recall and balanced accuracy of the gestures (a ``none`` answer is wrong),
 per-person accuracy, the confusion, rejection per held-out pose, accuracy by the tracker's
-confidence (the frame's ``Confidence``), frame accuracy with the held-out hands pitched by
+confidence (the frame's ``Confidence``), accuracy on the frames whose tracker's own finger
+flags show their pose and on the others (`mmhgr.Frames.tracker_agrees`: where they differ, the
+reported skeleton shows another pose), frame accuracy with the held-out hands pitched by
 ±30° about the palm (`PITCHED_DEG`), and what the open-set rule of `openset` (calibrated on each
 fold's training rows) would add to the rejection and cost the known gestures.
 """
