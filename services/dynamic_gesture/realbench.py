@@ -588,7 +588,8 @@ def _print_score(field: str, block: dict) -> None:
 
 
 HABITS = ("length_mm", "roll_deg", "roll_across_deg", "start_along", "duration_s", "peak_mm_s",
-          "bow", "returned", "return_speed_ratio", "return_length_ratio", "over_preparation")
+          "peak_over_mean", "bow", "returned", "return_speed_ratio", "return_length_ratio",
+          "over_preparation")
 
 
 def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: float
@@ -598,8 +599,9 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
     Per final window labelled a swipe: its length along the swipe's direction, the palm roll
     over it (and again for swipes across the body only: a right hand's to the left, a left
     hand's to the right), where it started along its direction relative to `middle` (the
-    recording's median palm position) in units of its length, its duration and peak speed, its
-    bow (largest sideways deviation / length), and whether a stroke followed it within 1.5 s (a
+    recording's median palm position) in units of its length, its duration and peak speed, how
+    peaked its speed profile is (that peak speed over the mean speed along its path), its bow
+    (largest sideways deviation / length), and whether a stroke followed it within 1.5 s (a
     return) and that stroke's peak speed relative to it; when that stroke reverses it
     (`reverses`), how far it went relative to the swipe, and when a stroke within 1.5 s before
     the swipe reverses it (a preparation), how much farther the swipe went: what
@@ -622,6 +624,7 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
                     "roll_across_deg": roll if across else np.nan,
                     "start_along": float((start - middle) @ d / length),
                     "duration_s": w.t_end - w.t_start, "peak_mm_s": w.peak_speed,
+                    "peak_over_mean": w.peak_speed / _mean_speed(w),
                     "bow": float(np.abs(xyz - np.outer(xyz @ d, d)).max() / length),
                     "returned": float(bool(after)),
                     "return_speed_ratio": (after[0].peak_speed / max(w.peak_speed, 1.0)
@@ -629,6 +632,12 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
                     "return_length_ratio": _length_ratio(after[:1], w),
                     "over_preparation": 1.0 / _length_ratio(before, w)})
     return out
+
+
+def _mean_speed(window) -> float:
+    """Returns the palm's mean speed along its path over a window, mm/s."""
+    path = float(np.linalg.norm(np.diff(window.obs[:, :3], axis=0), axis=1).sum())
+    return max(path / max(window.t_end - window.t_start, 1e-3), 1.0)
 
 
 def _length_ratio(other: list, swipe) -> float:
