@@ -39,7 +39,7 @@ Examples::
     cbgo bench dynamic --real ~/.cache/cbgo/shrec17/datasetShrec
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --per-class 0   # real Leap recordings
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --mirror   # the same as left hands
-    cbgo bench dynamic --real ~/.cache/cbgo/leapmotion-left --per-class 0   # real left hands (`leapjs`)
+    cbgo bench dynamic --real ~/.cache/cbgo/leapmotion-left --per-class 0   # real left hands
     cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec
     cbgo bench dynamic --live-sim 16           # simulated users through live services
     cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
