@@ -169,7 +169,8 @@ def arrange_left_hands(src: Path, dst: Path) -> int:
     ``dst/participant-P/swipe_X-T.json``, left-hand frames only. Returns how many it wrote.
 
     Raises:
-        FileNotFoundError: a recording of `LEFT_HAND_SWIPES` is not under `src`.
+        OSError: a recording of `LEFT_HAND_SWIPES` is not under `src`, or unreadable.
+        ValueError: a recording is not JSON.
     """
     for name, gesture in LEFT_HAND_SWIPES.items():
         stem = Path(name).name  # participant-P-T
@@ -198,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         count = arrange_left_hands(args.src, args.dst)
-    except FileNotFoundError as exc:
+    except (OSError, ValueError) as exc:  # a recording missing, unreadable or not JSON
         print(f"error: {exc}")
         return 2
     print(f"wrote {count} left-hand swipes under {args.dst}; "

@@ -62,7 +62,7 @@ POSE_FINGERS = {"fist_moved": (0, 0, 0, 0), "up": (0, 0, 0, 0), "index": (1, 0, 
                 "two": (1, 1, 0, 0), "three": (1, 1, 1, 0), "four": (1, 1, 1, 1),
                 "five": (1, 1, 1, 1)}
 """Which of index, middle, ring and pinky each gesture pose holds out (the thumb left aside:
-the tracker's thumb flag is as often set as not in a fist)."""
+the tracker flags it extended in a quarter of the set's fists)."""
 AMBIGUOUS = ("palm", "palm_m", "palm_u")
 UNKNOWN_POSES = tuple(p for p in POSES if p not in POSE_MAP and p not in AMBIGUOUS)
 SESSIONS = ("train_pose", "test_pose")
