@@ -60,7 +60,7 @@ import numpy as np
 from cbgo import keys, metrics, wire
 from cbgo.hands.model import mirrored_hand
 from cbgo.services.dynamic_gesture import leapjs, shrec, simdata
-from cbgo.services.dynamic_gesture.classifier import MIRROR
+from cbgo.services.dynamic_gesture.classifier import MIRROR, path_of
 from cbgo.services.dynamic_gesture.stroke import (
     GESTURE_P,
     REVERSE_MIN_MM,
@@ -125,7 +125,7 @@ def mirrored_trial(trial: Trial) -> Trial:
     Its frames mirrored (x → −x, sides swapped), a swipe_left becoming a swipe_right
     (`classifier.MIRROR`).
     """
-    frames = [(t, [mirrored_hand(h) for h in hands]) for t, hands in trial.frames()]
+    frames, _ = mirrored_stream(trial.frames(), [])
     return Trial(MIRROR.get(trial.truth, trial.truth), f"{trial.gesture} mirrored", trial.person,
                  frames)
 
@@ -636,8 +636,7 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
 
 def _mean_speed(window) -> float:
     """Returns the palm's mean speed along its path over a window, mm/s."""
-    path = float(np.linalg.norm(np.diff(window.obs[:, :3], axis=0), axis=1).sum())
-    return max(path / max(window.t_end - window.t_start, 1e-3), 1.0)
+    return max(path_of(window.obs[:, :3]) / max(window.t_end - window.t_start, 1e-3), 1.0)
 
 
 def _length_ratio(other: list, swipe) -> float:
