@@ -190,6 +190,7 @@ class DynamicGesture(Service):
         return {"gestures": [{"name": t.name, "source": t.source, "demos": t.n_demos}
                              for t in self.library.templates],
                 "skipped": self.library.skipped, "strokes": self.segmenter.strokes,
+                "tracking_jumps": self.segmenter.jumps,
                 "returns": self.returns.returns,
                 "windows": self.windows, "reloads": self.reloads,
                 "dtw": self.classifier.implementation,

@@ -5,6 +5,9 @@ Observation (what a dynamic gesture is compared on):
 - each hand's palm centre (mm, Leap frame) and palm **roll** are resampled to 20 Hz, as the
   paper does, by averaging the frames that fall in each 50 ms bin (this also averages out most of
   the 8–12 Hz physiological tremor); a bin without frames repeats the last sample;
+- a **tracking jump** (the palm landing far away in one frame, faster than ``jump_mm_s`` and
+  `JUMP_RATIO` times its previous step: the tracker re-fitted the hand) is taken out of the
+  palm's path before resampling (`Segmenter._palm`), so it is neither a stroke nor part of one;
 - the roll is the twist of ``palm_normal`` about ``direction`` summed frame by frame
   (`roll_increment`; the first frame's absolute `palm_roll` is the start), unwrapped, and
   negated for a left hand so that it is anatomical (the same rotation of either hand gives the
@@ -76,6 +79,12 @@ DT = 1.0 / RATE_HZ
 DEFAULT_CENTRE_MM = (0.0, 230.0, 0.0)  # the field centre; cbgo.simuser.motion.CENTRE_MM agrees
 DIMS = 4  # x, y, z, k·roll
 SPEED, RATE = 7, 8  # a sample: t, x, y, z, roll, grab, pinch, speed (mm/s), roll rate (°/s)
+# A tracking jump is also this many times faster than the palm's previous frame-to-frame move:
+# a hand speeds up over a tenth of a second, a tracker that re-fits its skeleton jumps at once.
+JUMP_RATIO = 3.0
+# A re-fit lands within a few frames (a spike out and back is two); a step as fast after that
+# many in a row is the hand's own motion, not a jump.
+JUMP_FRAMES = 3
 
 
 def _help(text: str) -> dict:
@@ -153,6 +162,10 @@ class SegmenterConfig:
     turn_back_mm: float = field(default=30.0, metadata=_help(
         "a stroke ends where the hand turns back by this much (or a quarter of its "
         "excursion, if more) from its farthest point, mm (roll as k*roll)"))
+    jump_mm_s: float = field(default=1200.0, metadata=_help(
+        "a palm that moves faster than this from one frame to the next, and 3 times faster "
+        "than in any of its last 3 steps, jumped: the tracker re-fitted the hand; the jump is "
+        "taken out of the palm's path, not read as motion, mm/s (0: off)"))
     return_s: float = field(default=1.5, metadata=_help(
         "a stroke that reverses the gesture just made and starts within this time of its "
         "end is its return move, and is not reported, s (0: report every stroke)"))
@@ -166,7 +179,8 @@ class SegmenterConfig:
         for name in positive:
             if not float(getattr(self, name)) > 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must be positive")
-        for name in ("end_hold_s", "rest_s", "return_s", "min_extent_mm", "min_peak_speed_mm_s",
+        for name in ("end_hold_s", "rest_s", "return_s", "jump_mm_s", "min_extent_mm",
+                     "min_peak_speed_mm_s",
                      "min_peak_roll_deg_s", "mid_peak_speed_mm_s"):
             if float(getattr(self, name)) < 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
@@ -325,6 +339,11 @@ class _Track:
         self.far_mm = 0.0  # and that excursion (mm, roll as k·roll)
         self.since_eval = 0
         self.stroke_id = 0
+        self.raw_palm: np.ndarray | None = None  # the palm as the tracker last reported it
+        self.jumped = np.zeros(3)  # the tracker's jumps so far, taken out of the palm's path
+        self.steps: deque[float] = deque(maxlen=3)  # the last frame-to-frame speeds, mm/s
+        self.velocity = np.zeros(3)  # the palm's velocity over the last of them, mm/s
+        self.jump_run = 0  # frames in a row taken for a jump
 
 
 class Segmenter:
@@ -345,6 +364,7 @@ class Segmenter:
         self.onset_samples = max(self.rest_samples, round(ONSET_S * RATE_HZ))
         self.tracks: dict[int, _Track] = {}
         self.strokes = 0
+        self.jumps = 0
 
     def reset(self) -> None:
         """Forgets every hand (e.g. when the frame clock jumps back)."""
@@ -387,7 +407,39 @@ class Segmenter:
         window = self._finish(track, len(track.stroke), "lost")
         return [window] if window is not None else []
 
+    def _palm(self, track: _Track, t: float, hand: dict) -> np.ndarray:
+        """Returns the palm position with the tracker's jumps taken out of its path.
+
+        A depth camera's or a Leap's hand model sometimes re-fits in one frame, and the palm
+        lands 50-150 mm away: read as motion, that is a stroke nobody made, or it bends the
+        swipe it falls in (SHREC'17 train split: 148 of 1257 recordings hold a frame-to-frame
+        step above 2000 mm/s). A step faster than ``jump_mm_s`` and `JUMP_RATIO` times the
+        fastest of the last three steps that were no jump is such a jump, for at most
+        `JUMP_FRAMES` frames in a row (a tracker's jitter makes some steps fast, never three
+        times all of the last three). The palm goes on at its last velocity instead, and every
+        later position is shifted by the jump (a stroke is read relative to its start, so only
+        its ``origin`` stays shifted). A hand's first step is never a jump: there is nothing to
+        compare it with.
+        """
+        raw = np.asarray(hand["palm_position"], dtype=float)
+        if track.raw_palm is not None and self.config.jump_mm_s > 0:
+            dt = max(t - track.last_t, 1e-3)
+            step = raw - track.raw_palm
+            speed = float(np.linalg.norm(step)) / dt
+            usual = max(track.steps, default=math.inf)
+            if (speed > self.config.jump_mm_s and speed > JUMP_RATIO * usual
+                    and track.jump_run < JUMP_FRAMES):
+                track.jumped = track.jumped + step - track.velocity * dt
+                track.jump_run += 1
+                self.jumps += 1
+            else:
+                track.steps.append(speed)
+                track.velocity, track.jump_run = step / dt, 0
+        track.raw_palm = raw
+        return raw - track.jumped
+
     def _add_frame(self, track: _Track, t: float, hand: dict) -> list[Window]:
+        palm = self._palm(track, t, hand)
         normal = np.asarray(hand["palm_normal"], dtype=float)
         if track.last_roll is None:
             roll = palm_roll(normal, hand["direction"], track.side)
@@ -396,7 +448,7 @@ class Segmenter:
                                                     hand["direction"], track.side)
         track.last_roll, track.last_normal, track.last_t = roll, normal, t
         out = []
-        for sample in track.resampler.add(t, hand["palm_position"], roll,
+        for sample in track.resampler.add(t, palm, roll,
                                           hand["grab_strength"], hand["pinch_strength"]):
             window = self._add_sample(track, sample)
             if window is not None:

@@ -219,6 +219,8 @@ def test_invalid_settings_name_the_fix():
         SegmenterConfig(centre_mm=[0.0, 1.0])
     with pytest.raises(ConfigError, match="must not exceed"):
         SegmenterConfig(end_speed_mm_s=500.0)
+    with pytest.raises(ConfigError, match="jump_mm_s=-1"):
+        SegmenterConfig(jump_mm_s=-1.0)
 
 
 def test_a_much_faster_move_back_after_an_unsure_gesture_is_reported(synth):
@@ -265,3 +267,44 @@ def test_a_stroke_soon_after_another_never_reaches_back_into_it(synth):
     first, second = finals(synth.feed(Segmenter(), traj))
     assert second.t_start >= first.t_end
     assert abs(second.obs[-1, 1]) < 30 and second.obs[-1, 0] > 130
+
+
+def jumped(traj, at_s, offset):
+    """The trajectory with the tracker's palm landing `offset` mm away from `at_s` on."""
+    return [(t, p + (np.asarray(offset, float) if t >= at_s else 0.0), r) for t, p, r in traj]
+
+
+def test_a_spike_out_and_back_is_no_stroke(synth):
+    traj = synth.trajectory([("hold", 2.0)], rate=30.0)
+    spike = [(t, p + ((0, 100, 0) if i == 30 else 0.0), r) for i, (t, p, r) in enumerate(traj)]
+    segmenter = Segmenter()
+    assert synth.feed(segmenter, spike) == []
+    assert segmenter.jumps == 2
+
+
+def test_a_jump_inside_a_swipe_is_taken_out_of_it(synth):
+    traj = jumped(synth.trajectory([REST, SWIPE_UP, ("hold", 0.5)], rate=30.0), 0.7,
+                  (100, 0, -80))
+    segmenter = Segmenter()
+    (final,) = finals(synth.feed(segmenter, traj))
+    assert segmenter.jumps == 1 and 140 < final.obs[-1, 1] < 175
+    assert np.abs(final.obs[-1, [0, 2]]).max() < 10  # the swipe as made, not bent by the jump
+    bent = finals(synth.feed(Segmenter(SegmenterConfig(jump_mm_s=0)), traj))[0]
+    assert np.abs(bent.obs[-1, [0, 2]]).max() > 50  # without the rule
+
+
+@pytest.mark.parametrize("rate", [30.0, 60.0, 120.0])
+def test_a_fast_swipe_is_no_jump(synth, rate):
+    # 300 mm in 0.3 s: a peak of 1875 mm/s, faster than 99 % of SHREC'17's frame steps.
+    traj = synth.trajectory([REST, ("move", 0.3, (300, 0, 0)), ("hold", 0.5)], rate=rate)
+    segmenter = Segmenter()
+    (final,) = finals(synth.feed(segmenter, traj))
+    assert segmenter.jumps == 0 and 280 < final.obs[-1, 0] < 310
+
+
+def test_a_hand_that_enters_fast_is_no_jump(synth):
+    enter = synth.trajectory([("move", 0.4, (0, 0, -400)), ("hold", 0.5)], rate=60.0,
+                             start=synth.CENTRE + [0, 0, 200])
+    segmenter = Segmenter()
+    synth.feed(segmenter, enter[5:])  # first seen while moving at full speed
+    assert segmenter.jumps == 0
