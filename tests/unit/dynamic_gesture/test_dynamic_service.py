@@ -56,6 +56,17 @@ def test_a_still_hand_publishes_nothing(bus, synth):
     assert play(bus, synth, [("hold", 4.0)], tremor=1.5) == []
 
 
+def test_a_tracking_jump_mid_swipe_is_counted_and_the_swipe_still_named(bus, synth):
+    out = []
+    for i, (t, p, r) in enumerate(synth.trajectory(SWIPE_UP, rate=30.0)):
+        jumped = p + (np.array([110.0, 0.0, -90.0]) if t >= 0.7 else 0.0)  # a re-fit at 0.7 s
+        out += bus.feed(keys.HANDS_FRAME, synth.frame(T0 + t, [synth.hand(jumped, r)], i))
+    final = out[-1][1]
+    assert winner(final) == "swipe_up" and max(final["probs"]) > 0.9  # 0.6 read as a bent stroke
+    ok, status = bus.query("status", None)
+    assert ok and status["tracking_jumps"] == 1
+
+
 def test_bad_frames_are_rejected_and_the_service_keeps_working(bus, synth):
     bus.feed_raw(keys.HANDS_FRAME, b"not msgpack")
     bad = synth.frame(T0, [synth.hand(synth.CENTRE, 0.0)])
