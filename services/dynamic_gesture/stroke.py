@@ -422,8 +422,8 @@ class Segmenter:
         compare it with.
         """
         raw = np.asarray(hand["palm_position"], dtype=float)
-        if track.raw_palm is not None and self.config.jump_mm_s > 0:
-            dt = max(t - track.last_t, 1e-3)
+        dt = t - track.last_t  # a frame stamped like the one before has no speed to judge
+        if track.raw_palm is not None and self.config.jump_mm_s > 0 and dt > 0:
             step = raw - track.raw_palm
             speed = float(np.linalg.norm(step)) / dt
             usual = max(track.steps, default=math.inf)

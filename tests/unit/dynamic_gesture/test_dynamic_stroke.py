@@ -308,3 +308,13 @@ def test_a_hand_that_enters_fast_is_no_jump(synth):
     segmenter = Segmenter()
     synth.feed(segmenter, enter[5:])  # first seen while moving at full speed
     assert segmenter.jumps == 0
+
+
+def test_a_frame_stamped_like_the_one_before_is_no_jump(synth):
+    # A frame mid-swipe that moved with no time passed (a bridge that stamped it twice).
+    traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.5)], rate=120.0)
+    i = 86  # 0.72 s: the swipe at its fastest
+    stamped = traj[:i] + [(traj[i - 1][0], *traj[i][1:])] + traj[i + 1:]
+    segmenter = Segmenter()
+    (final,) = finals(synth.feed(segmenter, stamped))
+    assert segmenter.jumps == 0 and 140 < final.obs[-1, 1] < 170
