@@ -6,8 +6,9 @@ Observation (what a dynamic gesture is compared on):
   paper does, by averaging the frames that fall in each 50 ms bin (this also averages out most of
   the 8–12 Hz physiological tremor); a bin without frames repeats the last sample;
 - a **tracking jump** (the palm landing far away in one frame, faster than ``jump_mm_s`` and
-  `JUMP_RATIO` times its previous step: the tracker re-fitted the hand) is taken out of the
-  palm's path before resampling (`Segmenter._palm`), so it is neither a stroke nor part of one;
+  `JUMP_RATIO` times each of its last `JUMP_HISTORY` steps: the tracker re-fitted the hand) is
+  taken out of the palm's path before resampling (`Segmenter._palm`), so it is neither a
+  stroke nor part of one;
 - the roll is the twist of ``palm_normal`` about ``direction`` summed frame by frame
   (`roll_increment`; the first frame's absolute `palm_roll` is the start), unwrapped, and
   negated for a left hand so that it is anatomical (the same rotation of either hand gives the
@@ -79,9 +80,11 @@ DT = 1.0 / RATE_HZ
 DEFAULT_CENTRE_MM = (0.0, 230.0, 0.0)  # the field centre; cbgo.simuser.motion.CENTRE_MM agrees
 DIMS = 4  # x, y, z, k·roll
 SPEED, RATE = 7, 8  # a sample: t, x, y, z, roll, grab, pinch, speed (mm/s), roll rate (°/s)
-# A tracking jump is also this many times faster than the palm's previous frame-to-frame move:
-# a hand speeds up over a tenth of a second, a tracker that re-fits its skeleton jumps at once.
+# A tracking jump is also this many times faster than each of the palm's last JUMP_HISTORY
+# frame-to-frame steps: a hand speeds up over a tenth of a second, a tracker that re-fits its
+# skeleton jumps at once, and a jittery tracker's fast steps are never three times all three.
 JUMP_RATIO = 3.0
+JUMP_HISTORY = 3
 # A re-fit lands within a few frames (a spike out and back is two); a step as fast after that
 # many in a row is the hand's own motion, not a jump.
 JUMP_FRAMES = 3
@@ -180,8 +183,7 @@ class SegmenterConfig:
             if not float(getattr(self, name)) > 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must be positive")
         for name in ("end_hold_s", "rest_s", "return_s", "jump_mm_s", "min_extent_mm",
-                     "min_peak_speed_mm_s",
-                     "min_peak_roll_deg_s", "mid_peak_speed_mm_s"):
+                     "min_peak_speed_mm_s", "min_peak_roll_deg_s", "mid_peak_speed_mm_s"):
             if float(getattr(self, name)) < 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
         if self.end_speed_mm_s > self.start_speed_mm_s:
@@ -341,7 +343,7 @@ class _Track:
         self.stroke_id = 0
         self.raw_palm: np.ndarray | None = None  # the palm as the tracker last reported it
         self.jumped = np.zeros(3)  # the tracker's jumps so far, taken out of the palm's path
-        self.steps: deque[float] = deque(maxlen=3)  # the last frame-to-frame speeds, mm/s
+        self.steps: deque[float] = deque(maxlen=JUMP_HISTORY)  # last frame-to-frame speeds
         self.velocity = np.zeros(3)  # the palm's velocity over the last of them, mm/s
         self.jump_run = 0  # frames in a row taken for a jump
 
@@ -414,9 +416,8 @@ class Segmenter:
         lands 50-150 mm away: read as motion, that is a stroke nobody made, or it bends the
         swipe it falls in (SHREC'17 train split: 148 of 1257 recordings hold a frame-to-frame
         step above 2000 mm/s). A step faster than ``jump_mm_s`` and `JUMP_RATIO` times the
-        fastest of the last three steps that were no jump is such a jump, for at most
-        `JUMP_FRAMES` frames in a row (a tracker's jitter makes some steps fast, never three
-        times all of the last three). The palm goes on at its last velocity instead, and every
+        fastest of the last `JUMP_HISTORY` steps that were no jump is such a jump, for at most
+        `JUMP_FRAMES` frames in a row. The palm goes on at its last velocity instead, and every
         later position is shifted by the jump (a stroke is read relative to its start, so only
         its ``origin`` stays shifted). A hand's first step is never a jump: there is nothing to
         compare it with.

@@ -60,7 +60,10 @@ def test_the_measures_agree_with_each_other(quick_run):
         # Causal order on the host's one clock: the episode is decided after its end
         # condition, the summary is received after it was stamped, and so on.
         assert r["last_hand_ts"] < r["end_condition"] < r["summary_ts"] <= r["summary_received"]
-        assert r["summary_received"] <= r["intent_ts"] <= r["intent_received"]
+        # The bench and the intent service each receive the summary: the intent may be
+        # stamped before the bench's own copy arrives (seen: by 0.3 ms), so only the
+        # episode's stamp orders it.
+        assert r["summary_ts"] <= r["intent_ts"] <= r["intent_received"]
         assert r["first_robot_action"] > r["intent_ts"]
         # The bench's own frames agree with the episode service on the last hand frame.
         assert r["bench_last_hand_ts"] == pytest.approx(r["last_hand_ts"], abs=1e-9)

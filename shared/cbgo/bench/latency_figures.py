@@ -158,7 +158,8 @@ def stage_durations(records: list[dict]) -> dict:
     """Returns the figures of each stage between the end condition and the intent's arrival.
 
     The summary's arrival at the bench stands in for its arrival at the intent service (both
-    subscribe to the same publication through the same router).
+    subscribe to the same publication through the same router), so the intent's stage may
+    come out a fraction of a millisecond below zero: the intent service's copy arrived first.
     """
     return {name: figures([r[stop] - r[start] for r in records])
             for name, start, stop in STAGE_SPANS}
