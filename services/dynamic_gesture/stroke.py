@@ -166,9 +166,10 @@ class SegmenterConfig:
         "a stroke ends where the hand turns back by this much (or a quarter of its "
         "excursion, if more) from its farthest point, mm (roll as k*roll)"))
     jump_mm_s: float = field(default=1200.0, metadata=_help(
-        "a palm that moves faster than this from one frame to the next, and 3 times faster "
-        "than in any of its last 3 steps, jumped: the tracker re-fitted the hand; the jump is "
-        "taken out of the palm's path, not read as motion, mm/s (0: off)"))
+        f"a palm that moves faster than this from one frame to the next, and {JUMP_RATIO:g} "
+        f"times faster than in any of its last {JUMP_HISTORY} steps, jumped: the tracker "
+        "re-fitted the hand; the jump is taken out of the palm's path, not read as motion, "
+        "mm/s (0: off)"))
     return_s: float = field(default=1.5, metadata=_help(
         "a stroke that reverses the gesture just made and starts within this time of its "
         "end is its return move, and is not reported, s (0: report every stroke)"))

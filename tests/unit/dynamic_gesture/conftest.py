@@ -71,8 +71,13 @@ def feed(segmenter, traj, hand_id=1, side="right"):
     return windows
 
 
+def jumped(traj, at_s, offset):
+    """The trajectory with the tracker's palm landing `offset` mm away from `at_s` on."""
+    return [(t, p + (np.asarray(offset, float) if t >= at_s else 0.0), r) for t, p, r in traj]
+
+
 @pytest.fixture
 def synth():
-    """The helpers above: hand, frame, trajectory, feed, CENTRE."""
-    return types.SimpleNamespace(hand=hand, frame=frame, trajectory=trajectory, feed=feed,
-                                 CENTRE=CENTRE)
+    """The helpers above: hand, frame, trajectory, jumped, feed, CENTRE."""
+    return types.SimpleNamespace(hand=hand, frame=frame, trajectory=trajectory, jumped=jumped,
+                                 feed=feed, CENTRE=CENTRE)

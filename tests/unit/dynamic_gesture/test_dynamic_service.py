@@ -58,9 +58,9 @@ def test_a_still_hand_publishes_nothing(bus, synth):
 
 def test_a_tracking_jump_mid_swipe_is_counted_and_the_swipe_still_named(bus, synth):
     out = []
-    for i, (t, p, r) in enumerate(synth.trajectory(SWIPE_UP, rate=30.0)):
-        jumped = p + (np.array([110.0, 0.0, -90.0]) if t >= 0.7 else 0.0)  # a re-fit at 0.7 s
-        out += bus.feed(keys.HANDS_FRAME, synth.frame(T0 + t, [synth.hand(jumped, r)], i))
+    refit = synth.jumped(synth.trajectory(SWIPE_UP, rate=30.0), 0.7, (110.0, 0.0, -90.0))
+    for i, (t, p, r) in enumerate(refit):
+        out += bus.feed(keys.HANDS_FRAME, synth.frame(T0 + t, [synth.hand(p, r)], i))
     final = out[-1][1]
     assert winner(final) == "swipe_up" and max(final["probs"]) > 0.9  # 0.6 read as a bent stroke
     ok, status = bus.query("status", None)

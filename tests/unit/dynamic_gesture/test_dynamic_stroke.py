@@ -269,21 +269,17 @@ def test_a_stroke_soon_after_another_never_reaches_back_into_it(synth):
     assert abs(second.obs[-1, 1]) < 30 and second.obs[-1, 0] > 130
 
 
-def jumped(traj, at_s, offset):
-    """The trajectory with the tracker's palm landing `offset` mm away from `at_s` on."""
-    return [(t, p + (np.asarray(offset, float) if t >= at_s else 0.0), r) for t, p, r in traj]
-
-
-def test_a_spike_out_and_back_is_no_stroke(synth):
+def test_a_spike_out_and_back_is_two_jumps_that_leave_the_path_where_it_was(synth):
     traj = synth.trajectory([("hold", 2.0)], rate=30.0)
     spike = [(t, p + ((0, 100, 0) if i == 30 else 0.0), r) for i, (t, p, r) in enumerate(traj)]
     segmenter = Segmenter()
     assert synth.feed(segmenter, spike) == []
     assert segmenter.jumps == 2
+    assert np.abs(segmenter.tracks[1].jumped).max() < 1e-9  # the way back undid the way out
 
 
 def test_a_jump_inside_a_swipe_is_taken_out_of_it(synth):
-    traj = jumped(synth.trajectory([REST, SWIPE_UP, ("hold", 0.5)], rate=30.0), 0.7,
+    traj = synth.jumped(synth.trajectory([REST, SWIPE_UP, ("hold", 0.5)], rate=30.0), 0.7,
                   (100, 0, -80))
     segmenter = Segmenter()
     (final,) = finals(synth.feed(segmenter, traj))
