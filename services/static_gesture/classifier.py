@@ -27,6 +27,9 @@ Rules (the model files are written by ``cbgo.services.static_gesture.train``):
   and keep the per-frame cost to a few matrix products (tens of µs for 32 draws on one frame;
   ``cbgo bench static`` prints the network's share) instead of torch's per-call overhead.
   Every row is renormalised in float64 so that it sums to 1 to rounding.
+- Open set (optional, ``open_set`` in the metadata, written by the trainer for a model with
+  ``none``): a frame far, in the hidden layer, from every training gesture has its gestures'
+  probabilities faded into ``none`` (`openset`). A malformed ``open_set`` refuses the model.
 - Nothing here touches Zenoh; the service (``main``) wires it to the bus.
 """
 
@@ -48,6 +51,7 @@ from cbgo.errors import ConfigError
 from cbgo.hands import features as F
 from cbgo.model_store import ModelStore
 from cbgo.services.static_gesture import invariant
+from cbgo.services.static_gesture.openset import OpenSet
 from cbgo.wire import NO_GESTURE
 
 KIND = "static-gesture"
@@ -114,11 +118,14 @@ class Posterior:
         weights: per layer, (S, n_in, n_out).
         biases: per layer, (S, 1, n_out) (zeros for a layer without bias).
         activation: ``tanh`` or ``relu`` between layers.
+        mean_first: the first layer's posterior mean weights (n_in, H) and bias (H,), for
+            `embed`.
     """
 
     weights: list[np.ndarray]
     biases: list[np.ndarray]
     activation: str
+    mean_first: tuple[np.ndarray, np.ndarray] | None = None
 
     @classmethod
     def draw(cls, model: bayes.BayesMLP, samples: int, seed: int) -> Posterior:
@@ -132,7 +139,11 @@ class Posterior:
         weights = [w.transpose(1, 2).double().numpy() for w, _ in draws]
         biases = [np.zeros((samples, 1, w.shape[1])) if b is None
                   else b[:, None, :].double().numpy() for w, b in draws]
-        return cls(weights, biases, model.arch.activation)
+        first = model.layers[0]
+        mean_first = (first.w_mu.detach().double().numpy().T,
+                      np.zeros(first.w_mu.shape[0]) if first.b_mu is None
+                      else first.b_mu.detach().double().numpy())
+        return cls(weights, biases, model.arch.activation, mean_first)
 
     def __post_init__(self):
         # The first layer of all draws as one (n_in, S·n_out) matrix: one product for every
@@ -150,9 +161,14 @@ class Posterior:
     def _activate(self, h: np.ndarray) -> np.ndarray:
         return np.tanh(h) if self.activation == "tanh" else np.maximum(h, 0.0)
 
-    def hidden(self, x: np.ndarray) -> np.ndarray:
-        """Returns (N, H) first-layer activations averaged over the drawn networks."""
-        return self._activate(self._first_layer(x)).mean(0)
+    def embed(self, x: np.ndarray) -> np.ndarray:
+        """Returns (N, H) first-layer activations at the posterior mean weights.
+
+        What the open-set rule measures distances in: the same for a model whatever the number
+        of draws it runs with.
+        """
+        w, b = self.mean_first
+        return self._activate(np.asarray(x, dtype=np.float64) @ w + b)
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """Returns (N, C) probabilities: the softmax averaged over the drawn networks."""
@@ -176,6 +192,8 @@ class StaticClassifier:
         metadata: the model's JSON metadata.
         path: the base path it was loaded from (None when built in memory).
         samples: posterior draws averaged per prediction.
+        open_set: the open-set rule applied to every prediction (`openset`), from the
+            metadata's ``open_set``; None for a model without one or without ``none``.
     """
 
     names: list[str]
@@ -188,6 +206,7 @@ class StaticClassifier:
     path: Path | None = None
     samples: int = DEFAULT_SAMPLES
     transform: str | None = None
+    open_set: OpenSet | None = field(default=None, repr=False)
 
     @classmethod
     def from_model(cls, model: bayes.BayesMLP, metadata: dict, samples: int = DEFAULT_SAMPLES,
@@ -201,13 +220,20 @@ class StaticClassifier:
         if samples < 1:
             raise ConfigError(f"samples must be at least 1, got {samples}")
         sha = metadata["weights_sha256"]
+        open_set = None
+        if metadata.get("open_set") is not None and NONE in metadata["names"]:
+            try:
+                open_set = OpenSet.from_dict(metadata["open_set"], model.arch.hidden[0])
+            except (KeyError, TypeError, ValueError, IndexError) as e:
+                raise ConfigError(f"model open_set is malformed ({type(e).__name__}: {e}); "
+                                  "retrain with `cbgo train static`") from None
         return cls(names=list(metadata["names"]), model_id=model_id_of(sha), metadata=metadata,
                    posterior=Posterior.draw(model, samples, int(sha[:8], 16)),
                    inputs=np.asarray(metadata["inputs"], dtype=np.int64),
                    transform=metadata.get("transform"),
                    mean=np.asarray(metadata["standardizer"]["mean"], dtype=np.float64),
                    std=np.asarray(metadata["standardizer"]["std"], dtype=np.float64),
-                   path=path, samples=samples)
+                   path=path, samples=samples, open_set=open_set)
 
     @classmethod
     def load(cls, path: str | Path, samples: int = DEFAULT_SAMPLES) -> StaticClassifier:
@@ -235,12 +261,21 @@ class StaticClassifier:
         except (TypeError, ValueError, KeyError, AttributeError) as e:
             raise ConfigError(f"{js}: malformed metadata ({type(e).__name__}: {e})") from None
 
-    def predict_features(self, features: np.ndarray) -> np.ndarray:
-        """Returns (N, C) probabilities for (N, 57) features (already on the recorded side)."""
+    def predict_features(self, features: np.ndarray, open_set: bool = True) -> np.ndarray:
+        """Returns (N, C) probabilities for (N, 57) features (already on the recorded side).
+
+        With the model's open-set rule applied, unless ``open_set`` is False (the network's
+        own answer, for benches that show what the rule adds).
+        """
         x = np.atleast_2d(np.asarray(features, dtype=np.float64))
         if len(x) == 0:
             return np.zeros((0, len(self.names)))
-        return self.posterior.predict(self.network_inputs(x))
+        inputs = self.network_inputs(x)
+        probs = self.posterior.predict(inputs)
+        if open_set and self.open_set is not None:
+            probs = self.open_set.apply(probs, self.posterior.embed(inputs),
+                                        self.names.index(NONE))
+        return probs
 
     def network_inputs(self, features: np.ndarray) -> np.ndarray:
         """Returns what the network reads for (N, 57) features: derived, selected, standardised."""
@@ -260,7 +295,10 @@ class StaticClassifier:
         return {"model": self.model_id, "path": str(self.path) if self.path else None,
                 "names": self.names, "samples": self.samples,
                 "trained_at": self.metadata.get("trained_at"),
-                "data_hash": self.metadata.get("data_hash")}
+                "data_hash": self.metadata.get("data_hash"),
+                "open_set": None if self.open_set is None else {
+                    "neighbours": self.open_set.neighbours, "alpha": self.open_set.alpha,
+                    "threshold": round(self.open_set.threshold, 4)}}
 
 
 REQUIRED_METADATA = ("kind", "names", "inputs", "standardizer", "feature_version",

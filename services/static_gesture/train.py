@@ -50,6 +50,11 @@ epochs in 40 % of the time, which is what makes the person-grouped cross-validat
 (``--validate``: a grouped fifth of the paper's recordings and unseen simulated people; the
 cross-validation on held-out people) — never on ``../shared/eval``.
 
+With a ``none`` class, the model also carries its open-set rule (`openset`: references and
+calibration distances of its own training gesture rows in the hidden layer), which the
+classifier applies to every prediction: a frame far from every training gesture fades into
+``none``.
+
 The model is written atomically (temporary files, then renamed: weights first, metadata last)
 with the weights' SHA-256 in the metadata, so a running service that polls the files never
 loads half a model.
@@ -82,10 +87,11 @@ from cbgo.hands.data import load_real_features, real_features_sha256
 from cbgo.hands.model import HandPose, HandShape, blend, build_hands, clip_to_limits, neutral_pose
 from cbgo.hands.poses import correlated_normal, gesture_pose
 from cbgo.metrics import expected_calibration_error
-from cbgo.services.static_gesture import invariant, mmhgr
+from cbgo.services.static_gesture import invariant, mmhgr, openset
 from cbgo.services.static_gesture.classifier import (
     KIND,
     NONE,
+    Posterior,
     StaticClassifier,
     model_id_of,
     shipped_model_path,
@@ -100,8 +106,8 @@ USER_MIN_ROWS = 300
 NONE_BLEND_MAX = 0.25  # how far a no-gesture hand may be into forming a gesture
 _DEG = np.pi / 180.0
 # Seed streams: training and validation never draw the same simulated people; the benchmark
-# uses its own stream too (``SIM_STREAM_BENCH``).
-SIM_STREAM_TRAIN, SIM_STREAM_VALIDATE, SIM_STREAM_BENCH = 1, 2, 3
+# uses its own stream too (``SIM_STREAM_BENCH``); the open set's choice of reference rows another.
+SIM_STREAM_TRAIN, SIM_STREAM_VALIDATE, SIM_STREAM_BENCH, SIM_STREAM_OPEN_SET = 1, 2, 3, 4
 
 
 @dataclass
@@ -509,6 +515,7 @@ def fit(data: Dataset, options: TrainOptions, progress: bool | str = False) -> T
     finally:
         torch.set_num_threads(threads)
     model.eval()
+    open_set = fit_open_set(model, standardizer(x), data, options.seed)
     metadata = {
         "kind": KIND, "names": data.names, "none_class": NONE if NONE in data.names else None,
         "inputs": inputs, "feature_version": F.FEATURE_VERSION,
@@ -521,8 +528,19 @@ def fit(data: Dataset, options: TrainOptions, progress: bool | str = False) -> T
         "trained_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "final_neg_elbo": history[-1], "cbgo_version": cbgo.__version__,
         "torch_version": torch.__version__,
+        "open_set": None if open_set is None else open_set.to_dict(),
     }
     return Trained(model, metadata, history, time.perf_counter() - t0)
+
+
+def fit_open_set(model: bayes.BayesMLP, inputs: np.ndarray, data: Dataset, seed: int
+                 ) -> openset.OpenSet | None:
+    """Calibrates the model's open-set rule on its training gesture rows (None: no ``none``)."""
+    if NONE not in data.names:
+        return None
+    hidden = Posterior.draw(model, 1, seed).embed(inputs)
+    gestures = [i for i, n in enumerate(data.names) if n != NONE]
+    return openset.OpenSet.fit(hidden, data.y, gestures, _rng(SIM_STREAM_OPEN_SET, seed))
 
 
 def save_model(base: str | Path, trained: Trained) -> tuple[Path, Path, str]:

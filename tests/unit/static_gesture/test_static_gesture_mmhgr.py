@@ -144,8 +144,8 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert set(fig["rejection"]) <= {"ok", "C"} and fig["rejection_n"] > 0
     assert sum(b["n"] for b in fig["by_confidence"]) == fig["n"]
     assert set(fig["pitched"]) == {"-30.0", "30.0"}
-    assert fig["open_set"]["rejection_overall"] >= fig["rejection_overall"]
-    assert fig["open_set"]["accuracy"] <= fig["accuracy"]
+    assert fig["rejection_overall"] >= fig["network"]["rejection_overall"]
+    assert fig["accuracy"] <= fig["network"]["accuracy"]
     # The test frames flag every finger extended: only five's show their pose.
     assert fig["tracker_agrees"]["share"] == pytest.approx(1 / 3)
     assert fig["tracker_agrees"]["balanced"] is None  # grab and thumbsup have no such frame
