@@ -164,6 +164,9 @@ def summarise(parts: list[dict]) -> dict:
                    "accuracy": float(net_correct[known].mean()),
                    "balanced_accuracy": float(np.mean([net_correct[label == g].mean()
                                                        for g in classes]))}
+        for style in per_style.values():
+            sel = known & np.isin(user, style["people"])
+            style["network_accuracy"] = float(net_correct[sel].mean()) if sel.any() else None
     pitched = {str(deg): float((np.concatenate([p["pitched"][deg] for p in parts]) == label)[
         known].mean()) for deg in (parts[0].get("pitched") or {})}
     return {"classes": classes, "recall": recall, "balanced_accuracy": float(np.mean(recall)),
@@ -212,8 +215,10 @@ def print_figures(fig: dict) -> None:
           + ", ".join(f"{u}: {a:.1%}" for u, a in fig["per_person"].items()))
     for style, s in fig.get("per_style", {}).items():
         people = s["people"]
+        alone = (f"; network alone {s['network_accuracy']:.2%}"
+                 if s.get("network_accuracy") is not None else "")
         print(f"  tracker style '{style}' (people {', '.join(map(str, people))}): "
-              f"{s['accuracy']:.2%} (n={s['n']})" if s["n"] else f"  {style}: no frames")
+              f"{s['accuracy']:.2%} (n={s['n']}){alone}" if s["n"] else f"  {style}: no frames")
     head = " " * 12 + "".join(f"{n[:7]:>8}" for n in fig["names"])
     print("  confusion (rows: true, columns: predicted)\n  " + head)
     for c, row in zip(fig["classes"], fig["confusion"], strict=True):

@@ -146,6 +146,7 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert set(fig["pitched"]) == {"-30.0", "30.0"}
     assert fig["rejection_overall"] >= fig["network"]["rejection_overall"]
     assert fig["accuracy"] <= fig["network"]["accuracy"]
+    assert all("network_accuracy" in s for s in fig["per_style"].values())
     # The test frames flag every finger extended: only five's show their pose.
     assert fig["tracker_agrees"]["share"] == pytest.approx(1 / 3)
     assert fig["tracker_agrees"]["balanced"] is None  # grab and thumbsup have no such frame
