@@ -155,16 +155,16 @@ def pick_trials(trials: list[Trial], per_class: int, seed: int) -> list[Trial]:
 def stream_joints(sequences: list[shrec.Sequence]) -> tuple[np.ndarray, list[tuple]]:
     """Returns the joints of sequences played back to back and each one's (name, t0, t1).
 
-    Between two sequences the hand moves slowly (minimum jerk, `MOVE_MM_S` on average, at least
-    `MOVE_S`) from where one ended to where the next begins and holds still for `HOLD_S`: it
-    never leaves the field.
+    Between two sequences the hand moves slowly (minimum jerk, `MOVE_MM_S` on average and
+    turning at most `TURN_DEG_S`, at least `MOVE_S`) from where one ended to where the next
+    begins and holds still for `HOLD_S`: it never leaves the field.
     """
     parts, spans, t = [], [], 0.0
     for seq in sequences:
         joints = seq.joints()
         if parts:
-            distance = float(np.linalg.norm(joints[0, 1] - parts[-1][-1, 1])) * 1000.0
-            n = int(max(MOVE_S, distance / MOVE_MM_S) * shrec.RATE_HZ)
+            a, b = shrec.to_hands(np.stack([parts[-1][-1], joints[0]]))
+            n = int(junction_s(a, b) * shrec.RATE_HZ)
             s = np.linspace(0, 1, n)[:, None, None]
             s = s**3 * (10 - 15 * s + 6 * s**2)
             parts.append(parts[-1][-1] + s * (joints[0] - parts[-1][-1]))
@@ -320,6 +320,18 @@ def _main_hand(frames: list[tuple[float, list[dict]]]) -> list[tuple[float, dict
     return [(t, h) for t, hands in frames for h in hands if h["id"] == main]
 
 
+def junction_s(a: dict, b: dict) -> float:
+    """Returns how long a stream's hand takes from hand `a` to hand `b` between two recordings.
+
+    At `MOVE_MM_S` on average and turning the palm at most `TURN_DEG_S` on average, at least
+    `MOVE_S`: a slow re-positioning, not a gesture (a palm turned 90° in 0.6 s is a rotate).
+    """
+    distance = float(np.linalg.norm(np.subtract(a["palm_position"], b["palm_position"])))
+    turn = math.degrees(math.acos(float(np.clip(np.dot(a["palm_normal"], b["palm_normal"]),
+                                                -1.0, 1.0))))
+    return max(MOVE_S, distance / MOVE_MM_S, turn / TURN_DEG_S)
+
+
 def trials_stream(trials: list[Trial], rate_hz: float = 60.0
                   ) -> tuple[list[tuple], list[tuple]]:
     """Returns recordings played back to back as one stream: frames and (name, t0, t1) spans.
@@ -334,10 +346,7 @@ def trials_stream(trials: list[Trial], rate_hz: float = 60.0
         hands = _main_hand(trial.frames())
         if frames:
             a, b = frames[-1][1][0], hands[0][1]
-            distance = float(np.linalg.norm(np.subtract(a["palm_position"], b["palm_position"])))
-            turn = math.degrees(math.acos(float(np.clip(np.dot(a["palm_normal"],
-                                                                b["palm_normal"]), -1, 1))))
-            n = int(max(MOVE_S, distance / MOVE_MM_S, turn / TURN_DEG_S) * rate_hz)
+            n = int(junction_s(a, b) * rate_hz)
             for i in range(1, n + 1):
                 s = i / n
                 frames.append((t + i / rate_hz, [blend_hands(a, b, s**3 * (10 - 15 * s

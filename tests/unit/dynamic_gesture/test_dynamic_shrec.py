@@ -99,6 +99,19 @@ def test_a_continuous_stream_keeps_the_hand_in_view_between_recordings(dataset):
 
 
 
+def test_between_recordings_the_hand_moves_and_turns_slowly():
+    def hand(x, normal):
+        return {"palm_position": [x, 200.0, 0.0], "palm_normal": normal}
+
+    down, side = [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]
+    assert realbench.junction_s(hand(0, down), hand(10, down)) == realbench.MOVE_S
+    assert realbench.junction_s(hand(0, down), hand(300, down)) == pytest.approx(
+        300 / realbench.MOVE_MM_S)
+    # a palm turned 90°: two seconds at 45°/s, not a rotate in 0.6 s
+    assert realbench.junction_s(hand(0, down), hand(10, side)) == pytest.approx(
+        90 / realbench.TURN_DEG_S)
+
+
 def test_a_recording_mirrored_is_the_other_hands_swipe_the_other_way(dataset):
     (seq,) = shrec.read_split(dataset, "train")
     trial = realbench.mirrored_trial(realbench.shrec_trial(seq))
