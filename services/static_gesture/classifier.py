@@ -223,8 +223,8 @@ class StaticClassifier:
         open_set = None
         if metadata.get("open_set") is not None and NONE in metadata["names"]:
             try:
-                open_set = OpenSet.from_dict(metadata["open_set"], model.arch.hidden[0])
-            except (KeyError, TypeError, ValueError, IndexError) as e:
+                open_set = OpenSet.from_dict(metadata["open_set"], bayes.layer_sizes(model.arch)[1])
+            except (KeyError, TypeError, ValueError) as e:
                 raise ConfigError(f"model open_set is malformed ({type(e).__name__}: {e}); "
                                   "retrain with `cbgo train static`") from None
         return cls(names=list(metadata["names"]), model_id=model_id_of(sha), metadata=metadata,
