@@ -36,3 +36,17 @@ def test_a_missing_real_test_file_is_named(tmp_path, capsys):
     assert bench.run(parser.parse_args(["--eval", str(tmp_path / "nope.npz")])) == 2
     assert "no such file" in capsys.readouterr().out
     assert bench.find_eval(tmp_path / "nope.npz") is None
+
+
+def test_the_unknown_pose_goals_read_held_out_and_seen_poses_apart():
+    throughput = {"per_frame_fps": 2000.0, "batch_fps": 9000.0, "service_handler_fps": 1500.0,
+                  "service_handler_fps_cpu": 1500.0, "load_average": 0.5}
+    crossval = {"accuracy": 0.92, "balanced_accuracy": 0.92, "folds": 25,
+                "rejection_overall": 0.62, "rejection_seen_overall": 0.955}
+    goals = {name: (met, text) for name, met, text in bench._goals(
+        {"throughput": throughput, "crossval": crossval})}
+    held = next(v for k, v in goals.items() if k.startswith("unknown poses held out"))
+    seen = next(v for k, v in goals.items() if "trained as none" in k)
+    assert held == (False, "62.0%") and seen == (True, "95.5%")
+    skipped = bench._goals({"throughput": throughput})
+    assert all(met is None for name, met, _ in skipped if name.startswith("unknown poses"))
