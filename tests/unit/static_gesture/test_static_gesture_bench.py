@@ -25,6 +25,10 @@ def test_the_bench_reports_accuracy_calibration_throughput_and_latency(tmp_path,
         assert text in printed
     fig = json.loads(out.read_text())
     assert fig["real"]["n"] == 80 and fig["real"]["balanced_accuracy"] > 0.9
+    shifted = fig["real"]["shifted"]
+    assert [r["times_training"] for r in shifted] == list(bench.SHIFTS)
+    assert all(r["accepted_right"] <= r["network_accepted_right"] for r in shifted)
+    assert "device- and person-style variation" in printed
     assert fig["throughput"]["per_frame_fps"] > 0 and fig["throughput"]["batch_fps"] > 0
     lat = fig["latency"]
     assert lat["messages"] > 10 and 0 < lat["p50_ms"] <= lat["p99_ms"] <= lat["max_ms"]
