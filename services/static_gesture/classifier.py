@@ -125,7 +125,7 @@ class Posterior:
     weights: list[np.ndarray]
     biases: list[np.ndarray]
     activation: str
-    mean_first: tuple[np.ndarray, np.ndarray] | None = None
+    mean_first: tuple[np.ndarray, np.ndarray]
 
     @classmethod
     def draw(cls, model: bayes.BayesMLP, samples: int, seed: int) -> Posterior:

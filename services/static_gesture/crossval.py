@@ -137,7 +137,7 @@ def summarise(parts: list[dict]) -> dict:
         sel = known & np.isin(user, members)
         per_style[style] = {"people": [int(u) for u in members], "n": int(sel.sum()),
                             "accuracy": float(correct[sel].mean()) if sel.any() else None}
-    rejected = (pred == NONE) | (top < REJECT_BELOW)
+    rejected = _rejected(pred, top)
     rejection = {str(q): float(rejected[held & (pose == q)].mean())
                  for q in np.unique(pose[held])}
     seen = np.isin(pose, [q for half in POSE_HALVES for q in half]) & ~held
@@ -155,15 +155,13 @@ def summarise(parts: list[dict]) -> dict:
     network = None
     if "network" in parts[0]:  # the same frames without the model's open-set rule
         net_pred = np.concatenate([p["network"][0] for p in parts])
-        net_rejected = (net_pred == NONE) | (np.concatenate([p["network"][1] for p in parts])
-                                             < REJECT_BELOW)
+        net_rejected = _rejected(net_pred, np.concatenate([p["network"][1] for p in parts]))
         net_correct = net_pred == label
         network = {"rejection_overall": float(net_rejected[held].mean()),
                    "rejection_seen_overall": float(net_rejected[seen].mean())
                    if seen.any() else None,
                    "accuracy": float(net_correct[known].mean()),
-                   "balanced_accuracy": float(np.mean([net_correct[label == g].mean()
-                                                       for g in classes]))}
+                   "balanced_accuracy": _balanced(net_correct, label, known, classes)}
         for style in per_style.values():
             sel = known & np.isin(user, style["people"])
             style["network_accuracy"] = float(net_correct[sel].mean()) if sel.any() else None
@@ -178,6 +176,11 @@ def summarise(parts: list[dict]) -> dict:
             "rejection_n": int(held.sum()), "rejection_seen": rejection_seen,
             "rejection_seen_overall": float(rejected[seen].mean()) if seen.any() else None,
             "by_confidence": by_conf, "tracker_agrees": tracker}
+
+
+def _rejected(pred: np.ndarray, top: np.ndarray) -> np.ndarray:
+    """Whether each answer rejects its frame: ``none``, or a top probability below 0.5."""
+    return (pred == NONE) | (top < REJECT_BELOW)
 
 
 def _balanced(correct: np.ndarray, label: np.ndarray, rows: np.ndarray, classes: list[str]
