@@ -8,6 +8,9 @@ Figures (goals from issue 4 in brackets):
    real classes [≥ 99.7 %; the paper's own model: 99.6 %], where a frame the model calls
    ``none`` counts as wrong; the same with ``none`` ignored (argmax over the gestures only); the
    confusion matrix; the expected calibration error [ECE ≤ 0.03].
+1b. **Ultraleap's own Gemini-tracked poses** (``ultraleap``: 8 frames of one person, vendored
+   from Ultraleap's Unity plugin, the only LMC2-generation skeletons we have): each pose's
+   answer as held (fingers up, palm to the user) and turned like the training hands.
 2. **Held-out simulated users**: gestures performed by simulated people from a seed stream the
    trainer never uses (a new hand per rendition), plus no-gesture poses when the model has that
    class: balanced accuracy, ECE, confusion; and simulated users performing the ``static-all``
@@ -25,7 +28,8 @@ Figures (goals from issue 4 in brackets):
    (``--folds``; 25 = leave-one-person-out): per-class recall and balanced accuracy [≥ 97 %],
    per person, confusion; rejection of unknown poses held out of training — answered ``none``
    or with top probability < 0.5 [≥ 90 %]; accuracy by tracking confidence, and on the
-   frames whose tracker's own finger flags show their pose apart from the others
+   frames whose tracker's own finger flags show their pose apart from the others, and with the
+   held-out hands turned about the palm (pitched, fingers up, rolled, palm up)
    (``cbgo.services.static_gesture.crossval``). ``--no-crossval`` skips it (it trains one model
    per fold: minutes).
 5. **Latency** through Zenoh: a router, leap-bridge (``static-all`` looping at ``--rate-hz``)
@@ -58,7 +62,7 @@ import numpy as np
 from cbgo import keys, wire
 from cbgo.hands.features import hands_features
 from cbgo.metrics import format_confusion
-from cbgo.services.static_gesture import crossval, invariant, mmhgr, train
+from cbgo.services.static_gesture import crossval, invariant, mmhgr, train, ultraleap
 from cbgo.services.static_gesture.classifier import (
     DEFAULT_SAMPLES,
     NONE,
@@ -330,6 +334,9 @@ def _print(fig: dict) -> None:
                   f"[{r['network_accepted_right']:.2%}]" for r in real["shifted"]))
         print("  confusion (rows: true, columns: predicted)")
         print(_indent(_confusion_text(real)) + "\n")
+    if fig.get("ultraleap"):
+        ultraleap.print_scores(fig["ultraleap"])
+        print()
     sim = fig["simulated"]
     _eval_lines("held-out simulated users", sim["renditions"])
     print(_indent(_confusion_text(sim["renditions"])))
@@ -434,6 +441,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if eval_path is not None:
         fig["real"] = real_test(clf, eval_path)
+    fig["ultraleap"] = ultraleap.score_poses(clf)
     hands, labels = scenario_frames([1000 + args.seed + i for i in range(args.scenario_seeds)])
     fig["simulated"] = simulated(clf, args.per_gesture, args.seed, hands, labels)
     fig["throughput"] = throughput(clf, hands[:args.frames], clf.path or model_path)

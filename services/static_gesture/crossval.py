@@ -17,10 +17,11 @@ Figures: per-class recall and balanced accuracy of the gestures (a ``none`` answ
 per-person accuracy, the confusion, rejection per held-out pose, accuracy by the tracker's
 confidence (the frame's ``Confidence``), accuracy on the frames whose tracker's own finger
 flags show their pose and on the others (`mmhgr.Frames.tracker_agrees`: where they differ, the
-reported skeleton shows another pose), frame accuracy with the held-out hands pitched by
-±30° about the palm (`PITCHED_DEG`). Every model applies its open-set rule (`openset`,
-calibrated on its own training rows); the network's answers without it are scored too, to show
-what the rule adds to the rejection and costs the known gestures.
+reported skeleton shows another pose), balanced accuracy with the held-out hands turned
+about the palm (`TURNS`: pitched ±30°, +60°, fingers up, rolled ±90°, palm up). Every model
+applies its open-set rule (`openset`, calibrated on its own training rows); the network's
+answers without it are scored too, to show what the rule adds to the rejection and costs the
+known gestures.
 """
 
 from __future__ import annotations
@@ -39,16 +40,22 @@ from cbgo.wire import STATIC_GESTURES
 POSE_HALVES = (("ok", "hang", "down"), ("C", "L", "heavy"))
 REJECT_BELOW = 0.5
 CONFIDENCE_BINS = (0.0, 0.25, 0.5, 0.75, 0.9, 1.0001)
-PITCHED_DEG = (-30.0, 30.0)
-"""The held-out people's frames are also scored turned by these pitches about the palm: how the
-model holds when a person (or a sensor mount) holds the hand otherwise."""
+TURNS = {"pitch -30°": ("x", -30.0), "pitch +30°": ("x", 30.0), "pitch +60°": ("x", 60.0),
+         "fingers up (pitch +90°)": ("x", 90.0), "roll +90°": ("z", 90.0),
+         "roll -90°": ("z", -90.0), "palm up (roll 180°)": ("z", 180.0)}
+"""The held-out people's frames are also scored turned about the palm by these (axis of the
+Leap frame, degrees; +pitch raises the fingers, roll turns about the forward axis): how the
+model holds when a person, or a sensor mount, holds the hand otherwise. Yaw (about the
+vertical) is left out: the features do not see it."""
 
 
-def pitch_rotations(n: int, deg: float) -> np.ndarray:
-    """Returns n copies of the rotation that pitches a hand by ``deg`` (about the x axis)."""
-    a = np.deg2rad(deg)
-    r = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
-    return np.broadcast_to(r, (n, 3, 3))
+def turn_rotations(n: int, axis: str, deg: float) -> np.ndarray:
+    """Returns n copies of the rotation by ``deg`` about the Leap frame's ``axis`` (x, y, z)."""
+    c, s = np.cos(np.deg2rad(deg)), np.sin(np.deg2rad(deg))
+    r = {"x": [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]],
+         "y": [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]],
+         "z": [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]}[axis]
+    return np.broadcast_to(np.array(r), (n, 3, 3))
 
 
 def person_folds(people: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
@@ -93,9 +100,9 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
         parts.append({"frames": sub, "pred": np.array(clf.names)[probs.argmax(1)],
                       "top": probs.max(1), "held_unknown": np.isin(sub.pose, held_out),
                       "network": (np.array(clf.names)[network.argmax(1)], network.max(1)),
-                      "pitched": {deg: np.array(clf.names)[clf.predict_features(
-                          mmhgr.features57(sub, pitch_rotations(len(sub), deg))).argmax(1)]
-                          for deg in PITCHED_DEG}})
+                      "turned": {name: np.array(clf.names)[clf.predict_features(
+                          mmhgr.features57(sub, turn_rotations(len(sub), *turn))).argmax(1)]
+                          for name, turn in TURNS.items()}})
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
@@ -165,10 +172,12 @@ def summarise(parts: list[dict]) -> dict:
         for style in per_style.values():
             sel = known & np.isin(user, style["people"])
             style["network_accuracy"] = float(net_correct[sel].mean()) if sel.any() else None
-    pitched = {str(deg): float((np.concatenate([p["pitched"][deg] for p in parts]) == label)[
-        known].mean()) for deg in (parts[0].get("pitched") or {})}
+    turned = {}
+    for name in parts[0].get("turned") or {}:
+        turned_correct = np.concatenate([p["turned"][name] for p in parts]) == label
+        turned[name] = _balanced(turned_correct, label, known, classes)
     return {"classes": classes, "recall": recall, "balanced_accuracy": float(np.mean(recall)),
-            "pitched": pitched, "network": network,
+            "turned": turned, "network": network,
             "accuracy": float(correct[known].mean()), "n": int(known.sum()),
             "per_person": per_person, "per_style": per_style, "confusion": confusion,
             "names": names,
@@ -240,9 +249,9 @@ def print_figures(fig: dict) -> None:
               f"unknown poses held out {o['rejection_overall']:.1%} rejected"
               + (f", seen ones {o['rejection_seen_overall']:.1%}"
                  if o["rejection_seen_overall"] is not None else ""))
-    if fig.get("pitched"):
-        print("  the same frames with the hand pitched about the palm: " + ", ".join(
-            f"{float(d):+.0f}° {a:.2%}" for d, a in fig["pitched"].items()))
+    if fig.get("turned"):
+        print("  the same frames turned about the palm (balanced accuracy): " + ", ".join(
+            f"{name} {a:.2%}" for name, a in fig["turned"].items()))
     t = fig.get("tracker_agrees")
     if t and t["balanced"] is not None:
         other = t["balanced_otherwise"]

@@ -143,7 +143,7 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert set(fig["per_person"]) == {1, 2, 3, 4}
     assert set(fig["rejection"]) <= {"ok", "C"} and fig["rejection_n"] > 0
     assert sum(b["n"] for b in fig["by_confidence"]) == fig["n"]
-    assert set(fig["pitched"]) == {"-30.0", "30.0"}
+    assert set(fig["turned"]) == set(crossval.TURNS)
     assert fig["rejection_overall"] >= fig["network"]["rejection_overall"]
     assert fig["accuracy"] <= fig["network"]["accuracy"]
     assert all("network_accuracy" in s for s in fig["per_style"].values())

@@ -1,0 +1,218 @@
+"""Ultraleap's own recorded hand poses (Gemini tracking): reader and a bench on the live model.
+
+Why: issue 15 asks for static gestures that hold on the Leap Motion Controller 2 (Ultraleap
+Gemini / LeapC tracking). No public LMC2 recording set exists that we know of, but Ultraleap's
+Unity plugin (``ultraleap/UnityPlugin``, Apache-2.0) ships the hand poses of its pose detector
+as serialized Gemini hands: one frame per pose, one person, both sides (the left hand is the
+right one mirrored). They are the only Gemini-generation skeletons we have: the thumb's
+metacarpal of zero length, Gemini's joint placement and palm width. They are vendored in
+``ultraleap_poses/`` with the plugin's licence (see its README).
+
+Rules:
+
+- A pose file is a Unity YAML asset (``HandPoseScriptableObject``); its ``serializedHand`` and
+  ``mirroredHand`` are Leap ``Hand`` objects in Unity's world: metres, LEFT-handed (+x right,
+  +y up, +z away from the user). `hand_of` converts them into contract hands in the Leap
+  frame (mm, right-handed, +z towards the user) by flipping z, and moves the palm to
+  `FIELD_CENTRE_MM` (Unity's world origin is not the sensor; no feature reads the palm's
+  position). Bone rotations are left out: the features read bone directions from the joints,
+  and the zero-length thumb metacarpal borrows its proximal's direction, as LeapC frames do
+  (``services/leap_bridge/leap_device.py``). Field names are read case-insensitively: the
+  plugin's versions spell them ``fingers`` / ``Fingers``.
+- The poses were captured held up in front of a head-mounted sensor: fingers up (the hand
+  direction's +y about 0.9, except the thumbs: sideways), palm towards the user. That is far
+  outside how the paper's people and the HGR set's held their hands over a desktop sensor, so
+  `score_poses` also scores each pose turned (rigidly, about its palm) into the orientation of
+  the calibrated poses (``cbgo.hands.poses.gesture_mean``) of ``five``, ``grab``, ``point`` and
+  ``thumbsup``: what the model makes of the same hand shape held as the training hands were.
+- `POSES` maps the files to cbgo's vocabulary: ``fist`` → grab, ``open_palm`` → five,
+  ``point``, ``thumbs_up`` and ``thumbs_extended`` → thumbsup, ``v`` → two; ``ok`` and
+  ``horns`` are no gesture of ours (``none``: right when answered ``none`` or with top
+  p < 0.5).
+
+Example::
+
+    python -m cbgo.services.static_gesture.ultraleap        # the shipped model on the poses
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from cbgo.wire import BONE_TYPES, FINGER_TYPES
+
+POSES_DIR = Path(__file__).with_name("ultraleap_poses")
+POSES = {"fist": "grab", "open_palm": "five", "point": "point", "thumbs_up": "thumbsup",
+         "thumbs_extended": "thumbsup", "v": "two", "ok": "none", "horns": "none"}
+FIELD_CENTRE_MM = (0.0, 200.0, 0.0)
+TRAINING_ORIENTATIONS = ("five", "grab", "point", "thumbsup")
+REJECT_BELOW = 0.5  # an unknown pose answered with a top probability below this is rejected
+
+
+def _lower_keys(value):
+    """Returns YAML data with every mapping key's first letter lower-cased, recursively."""
+    if isinstance(value, dict):
+        return {k[:1].lower() + k[1:]: _lower_keys(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_lower_keys(v) for v in value]
+    return value
+
+
+def read_pose(path: Path) -> dict:
+    """Returns a pose asset's fields (keys lower-camel-case), from Unity YAML."""
+    # Unity's YAML has %TAG directives and "--- !u!114 &id" documents that PyYAML rejects;
+    # the asset holds one document, so both are dropped.
+    text = "\n".join(line for line in Path(path).read_text().splitlines()
+                     if not line.startswith(("%", "---")))
+    return _lower_keys(yaml.safe_load(text))["monoBehaviour"]
+
+
+def _mm(v: dict) -> np.ndarray:
+    return np.array([1000.0 * v["x"], 1000.0 * v["y"], -1000.0 * v["z"]])
+
+
+def _unit(v: dict) -> list[float]:
+    u = np.array([v["x"], v["y"], -v["z"]], dtype=np.float64)
+    return (u / max(float(np.linalg.norm(u)), 1e-9)).tolist()
+
+
+def hand_of(serialized: dict, hand_id: int = 1) -> dict:
+    """Returns the contract hand (Leap frame, mm) of one serialized Unity ``Hand``."""
+    shift = np.asarray(FIELD_CENTRE_MM) - _mm(serialized["palmPosition"])
+
+    def point(v: dict) -> list[float]:
+        return (_mm(v) + shift).tolist()
+
+    fingers = [{"type": ftype, "bones": [
+        {"type": btype, "prev_joint": point(bone["prevJoint"]),
+         "next_joint": point(bone["nextJoint"]), "width": 1000.0 * float(bone["width"])}
+        for btype, bone in zip(BONE_TYPES, finger["bones"], strict=True)]}
+        for ftype, finger in zip(FINGER_TYPES, serialized["fingers"], strict=True)]
+    return {"id": hand_id, "side": "left" if serialized["isLeft"] else "right",
+            "confidence": float(np.clip(serialized["confidence"], 0.0, 1.0)),
+            "palm_position": list(FIELD_CENTRE_MM),
+            "palm_velocity": (_mm(serialized["palmVelocity"])).tolist(),
+            "palm_normal": _unit(serialized["palmNormal"]),
+            "direction": _unit(serialized["direction"]),
+            "wrist_position": point(serialized["wristPosition"]),
+            "palm_width": 1000.0 * float(serialized["palmWidth"]),
+            "grab_strength": float(np.clip(serialized["grabStrength"], 0.0, 1.0)),
+            "pinch_strength": float(np.clip(serialized["pinchStrength"], 0.0, 1.0)),
+            "fingers": fingers}
+
+
+def load_poses(folder: Path = POSES_DIR) -> dict[str, list[dict]]:
+    """Returns {pose name: [right hand, left hand]} of every asset in `folder`."""
+    out = {}
+    for path in sorted(Path(folder).glob("*.asset")):
+        pose = read_pose(path)
+        hands = [hand_of(pose["serializedHand"]), hand_of(pose["mirroredHand"])]
+        out[path.stem] = sorted(hands, key=lambda h: h["side"] != "right")
+    return out
+
+
+def palm_frame(hand: dict) -> np.ndarray:
+    """Returns the rows direction, palm normal (made orthogonal) and their cross product."""
+    d = np.asarray(hand["direction"], dtype=np.float64)
+    d /= np.linalg.norm(d)
+    n = np.asarray(hand["palm_normal"], dtype=np.float64)
+    n = n - d * float(n @ d)
+    n /= np.linalg.norm(n)
+    return np.stack([d, n, np.cross(d, n)])
+
+
+def turned_like(hand: dict, reference: dict) -> dict:
+    """Returns `hand` turned about its palm centre so that its palm frame is `reference`'s."""
+    rot = palm_frame(reference).T @ palm_frame(hand)
+    centre = np.asarray(hand["palm_position"], dtype=np.float64)
+
+    def point(p) -> list[float]:
+        return (rot @ (np.asarray(p, dtype=np.float64) - centre) + centre).tolist()
+
+    def vector(v) -> list[float]:
+        return (rot @ np.asarray(v, dtype=np.float64)).tolist()
+
+    return {**hand, "palm_normal": vector(hand["palm_normal"]),
+            "direction": vector(hand["direction"]),
+            "palm_velocity": vector(hand["palm_velocity"]),
+            "wrist_position": point(hand["wrist_position"]),
+            "fingers": [{**f, "bones": [{**b, "prev_joint": point(b["prev_joint"]),
+                                         "next_joint": point(b["next_joint"])}
+                                        for b in f["bones"]]} for f in hand["fingers"]]}
+
+
+def _right(truth: str, names: list[str], probs: np.ndarray) -> bool:
+    top = int(np.argmax(probs))
+    if truth == "none":
+        return names[top] == "none" or float(probs[top]) < REJECT_BELOW
+    return names[top] == truth
+
+
+def score_poses(classifier, poses: dict[str, list[dict]] | None = None) -> dict:
+    """Scores a `StaticClassifier` on the poses as held, and turned like the training hands.
+
+    Returns:
+        ``{"poses": [{pose, truth, answer, p, right, turned: {orientation: (answer, p)}}],
+        "right": k, "n": n, "right_turned": k, "n_turned": n}``; both sides of a pose are
+        mirror images, so each pose is scored on its right hand (the left gives the same
+        answer: a unit test holds them together).
+    """
+    from cbgo.hands.model import HandShape, build_hand  # noqa: PLC0415
+    from cbgo.hands.poses import gesture_mean  # noqa: PLC0415
+
+    poses = load_poses() if poses is None else poses
+    references = {g: build_hand(HandShape(side="right"), gesture_mean(g), FIELD_CENTRE_MM)
+                  for g in TRAINING_ORIENTATIONS}
+    rows, right_turned, n_turned = [], 0, 0
+    for name, (hand, _) in poses.items():
+        truth = POSES.get(name, "none")
+        turned = [turned_like(hand, ref) for ref in references.values()]
+        probs = classifier.classify_hands([hand, *turned])
+        names = classifier.names
+        answers = [(names[int(np.argmax(p))], float(np.max(p))) for p in probs]
+        oks = [_right(truth, names, p) for p in probs]
+        right_turned += sum(oks[1:])
+        n_turned += len(oks) - 1
+        rows.append({"pose": name, "truth": truth, "answer": answers[0][0], "p": answers[0][1],
+                     "right": oks[0], "turned": dict(zip(references, answers[1:], strict=True)),
+                     "direction": hand["direction"], "palm_normal": hand["palm_normal"]})
+    return {"poses": rows, "right": sum(r["right"] for r in rows), "n": len(rows),
+            "right_turned": right_turned, "n_turned": n_turned}
+
+
+def print_scores(fig: dict) -> None:
+    """Prints `score_poses`' figures: one line per pose."""
+    print(f"Ultraleap's Gemini-tracked poses (UnityPlugin, 1 person, held fingers up, palm to "
+          f"the user): {fig['right']}/{fig['n']} right as held; turned like the training "
+          f"hands ({', '.join(TRAINING_ORIENTATIONS)}): {fig['right_turned']}/{fig['n_turned']}")
+    for row in fig["poses"]:
+        turned = "  ".join(f"{a}:{p:.2f}" for a, p in row["turned"].values())
+        print(f"  {row['pose']:16s} ({row['truth']:8s}) as held {row['answer']}:{row['p']:.2f}"
+              f"{'' if row['right'] else ' ✗'}; turned {turned}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Scores a static-gesture model on Ultraleap's poses."""
+    from cbgo.services.static_gesture.classifier import (  # noqa: PLC0415
+        StaticClassifier,
+        default_model_path,
+    )
+
+    parser = argparse.ArgumentParser(
+        prog="python -m cbgo.services.static_gesture.ultraleap",
+        description="Score a static-gesture model on Ultraleap's own Gemini-tracked hand "
+                    "poses (vendored from UnityPlugin), as held and turned like the training "
+                    "hands.")
+    parser.add_argument("--model", type=Path, default=None,
+                        help="model path (default: the one the service loads)")
+    args = parser.parse_args(argv)
+    print_scores(score_poses(StaticClassifier.load(args.model or default_model_path())))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
