@@ -64,6 +64,9 @@ POSE_FINGERS = {"fist_moved": (0, 0, 0, 0), "up": (0, 0, 0, 0), "index": (1, 0, 
 """Which of index, middle, ring and pinky each gesture pose holds out (the thumb left aside:
 the tracker flags it extended in a quarter of the set's fists)."""
 AMBIGUOUS = ("palm", "palm_m", "palm_u")
+ORIENTED_POSES = ("up", "down")
+"""Poses that differ by orientation alone: the same fist with the thumb out, held palm up
+(``up``) or palm down (``down``); every other pose is told by its shape."""
 UNKNOWN_POSES = tuple(p for p in POSES if p not in POSE_MAP and p not in AMBIGUOUS)
 SESSIONS = ("train_pose", "test_pose")
 _FINGER_TAGS = ("Thumb", "Index", "Middle", "Ring", "Pinky")
@@ -327,8 +330,11 @@ def features57(frames: Frames, rotation: np.ndarray | None = None) -> np.ndarray
     return x
 
 
-def random_rotations(rng: np.random.Generator, n: int, deg: float) -> np.ndarray:
-    """Returns (n, 3, 3) rotations by roll, pitch, yaw each drawn from N(0, deg)."""
+def random_rotations(rng: np.random.Generator, n: int, deg: float | np.ndarray) -> np.ndarray:
+    """Returns (n, 3, 3) rotations by roll, pitch, yaw each drawn from N(0, deg).
+
+    ``deg`` is one spread for all, or (n, 1) spreads, one per rotation.
+    """
     a = np.deg2rad(rng.normal(0.0, deg, (n, 3)))
     c, s = np.cos(a), np.sin(a)
     one, zero = np.ones(n), np.zeros(n)

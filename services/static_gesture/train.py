@@ -20,8 +20,10 @@ left-hand space):
 - the multi-modal Leap HGR set when its cache exists (`mmhgr`; ``--no-mmhgr`` leaves it out;
   25 other people on another Leap): its gestures under cbgo's names (``mmhgr.POSE_MAP``) and
   its unknown poses (ok, C, L, hang, heavy, thumb down) as ``none``, every ``--mmhgr-stride``-th
-  frame, each turned by N(0, 20°) about its palm (20° rather than 10°: chosen on the
-  person-grouped cross-validation, never on ``../shared/eval``);
+  frame, each turned by N(0, 20°) about its palm (``--rotate-deg``; 20° rather than 10°: chosen
+  on the person-grouped cross-validation, never on ``../shared/eval``); ``--rotate-shape-deg``
+  turns the poses told by shape alone wider (a model for hands held at many angles, at a
+  cost on hands held as usual: the figures are in the README);
 - the user's own gestures recorded by demonstration (``cbgo gestures record NAME --static``),
   stored in ``data_dir()/gestures/static/NAME.npz``: a new name becomes a new class (after the 8
   and before ``none``), a known name adds examples to that class. Few frames of one take are
@@ -131,6 +133,7 @@ class TrainOptions:
     mmhgr_stride: int = 6
     augment_copies: int = 1
     rotate_deg: float = 20.0
+    rotate_shape_deg: float | None = None
 
     def __post_init__(self):
         if self.features not in ("raw", *invariant.TRANSFORMS):
@@ -381,7 +384,10 @@ def mmhgr_rows(frames: mmhgr.Frames, names: list[str], options: TrainOptions,
 
     Every ``mmhgr_stride``-th frame of a pose is kept (neighbouring frames are near-identical),
     turned by N(0, ``rotate_deg``) in roll, pitch and yaw about its palm (a hand held at
-    another angle, a sensor mounted another way).
+    another angle, a sensor mounted another way); with ``rotate_shape_deg``, the poses told by
+    their shape alone (all but `mmhgr.ORIENTED_POSES`) by N(0, ``rotate_shape_deg``) instead:
+    wider turns teach the model those poses at more orientations, while the thumb poses keep
+    the orientation that tells them apart.
 
     Args:
         frames: the converted frames (`mmhgr.load`), only of the people to train on.
@@ -400,7 +406,10 @@ def mmhgr_rows(frames: mmhgr.Frames, names: list[str], options: TrainOptions,
     none = keep & np.isin(frames.pose, unknown) & (NONE in names)
     sel = np.flatnonzero(known | none)
     sub = frames.subset(sel)
-    rot = mmhgr.random_rotations(rng, len(sel), options.rotate_deg) if options.rotate_deg else None
+    deg = np.full(len(sel), float(options.rotate_deg))
+    if options.rotate_shape_deg is not None:
+        deg[~np.isin(sub.pose, mmhgr.ORIENTED_POSES)] = options.rotate_shape_deg
+    rot = mmhgr.random_rotations(rng, len(sel), deg[:, None]) if deg.any() else None
     x = mmhgr.features57(sub, rot)
     y = np.array([names.index(lab) if lab in names else names.index(NONE)
                   for lab in labels[sel]], dtype=np.int64)
@@ -700,6 +709,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"exists ({mmhgr.default_cache()})")
     parser.add_argument("--mmhgr-stride", type=int, default=d.mmhgr_stride,
                         help=f"keep every Nth frame of that set [{d.mmhgr_stride}]")
+    parser.add_argument("--rotate-deg", type=float, default=d.rotate_deg,
+                        help="turn each HGR frame about its palm by N(0, this) degrees in roll, "
+                             f"pitch and yaw [{d.rotate_deg:g}]")
+    parser.add_argument("--rotate-shape-deg", type=float, default=d.rotate_shape_deg,
+                        help="turn the HGR poses told by shape alone (all but the palm-up and "
+                             "palm-down thumb poses) by N(0, this) instead: a model for hands "
+                             "held at many angles (head-mounted sensors): 45 read fingers-up "
+                             "and rolled hands 9-36 points better and hands held as usual "
+                             "0.7 points worse (services/static_gesture/README.md) "
+                             "[as --rotate-deg]")
     parser.add_argument("--no-user-gestures", action="store_true",
                         help="leave out the gestures recorded by demonstration")
     parser.add_argument("--validate", action="store_true",
@@ -714,6 +733,7 @@ def options_from(args: argparse.Namespace) -> TrainOptions:
                         prior_sigma=args.prior_sigma, seed=args.seed,
                         off_vocabulary=args.off_vocabulary, features=args.features,
                         mmhgr=not args.no_mmhgr, mmhgr_stride=args.mmhgr_stride,
+                        rotate_deg=args.rotate_deg, rotate_shape_deg=args.rotate_shape_deg,
                         user_gestures=not (args.no_user_gestures or args.shipped))
 
 

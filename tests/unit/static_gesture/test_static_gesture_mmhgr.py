@@ -168,3 +168,18 @@ def test_a_frame_agrees_with_its_pose_when_the_trackers_finger_flags_show_it(
     (folder / "frame_1.xml").write_text(frame_xml(_hand("five", "right", 1), extended=flags))
     mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     assert mmhgr.load(tmp_path / "c.npz").tracker_agrees().tolist() == [agrees]
+
+
+def test_wider_turns_spare_the_thumb_poses_told_apart_by_orientation(tmp_path):
+    write_dataset(tmp_path / "src", people=(1,), poses=("fist_moved", "five", "up"), per_pose=2)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    names = ["grab", "five", "thumbsup", "none"]
+    still, _, _ = train.mmhgr_rows(frames, names, train.TrainOptions(
+        mmhgr_stride=1, rotate_deg=0.0), np.random.default_rng(0))
+    wide, y, _ = train.mmhgr_rows(frames, names, train.TrainOptions(
+        mmhgr_stride=1, rotate_deg=0.0, rotate_shape_deg=45.0), np.random.default_rng(0))
+    assert np.allclose(still, mmhgr.features57(frames))
+    moved = ~np.isclose(wide, still).all(axis=1)
+    thumbs = y == names.index("thumbsup")
+    assert not moved[thumbs].any() and moved[~thumbs].all()
