@@ -33,6 +33,7 @@ from dataclasses import replace
 import numpy as np
 
 from cbgo.hands.data import load_real_features
+from cbgo.hands.model import rotation
 from cbgo.services.static_gesture import mmhgr, train
 from cbgo.services.static_gesture.classifier import NONE
 from cbgo.wire import STATIC_GESTURES
@@ -51,11 +52,8 @@ vertical) is left out: the features do not see it."""
 
 def turn_rotations(n: int, axis: str, deg: float) -> np.ndarray:
     """Returns n copies of the rotation by ``deg`` about the Leap frame's ``axis`` (x, y, z)."""
-    c, s = np.cos(np.deg2rad(deg)), np.sin(np.deg2rad(deg))
-    r = {"x": [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]],
-         "y": [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]],
-         "z": [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]}[axis]
-    return np.broadcast_to(np.array(r), (n, 3, 3))
+    r = rotation(np, "xyz".index(axis), np.deg2rad(float(deg)))
+    return np.broadcast_to(r, (n, 3, 3))
 
 
 def person_folds(people: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
