@@ -716,7 +716,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="turn the HGR poses told by shape alone (all but the palm-up and "
                              "palm-down thumb poses) by N(0, this) instead: a model for hands "
                              "held at many angles (head-mounted sensors): 45 read fingers-up "
-                             "and rolled hands 9-36 points better and hands held as usual "
+                             "and rolled hands 9-39 points better and hands held as usual "
                              "0.7 points worse (services/static_gesture/README.md) "
                              "[as --rotate-deg]")
     parser.add_argument("--no-user-gestures", action="store_true",
