@@ -18,8 +18,10 @@ Rules (the model files are written by ``cbgo.services.static_gesture.train``):
   zero-length bone and are left out of ``inputs`` by the trainer (see ``train``).
 - ``transform`` (optional): ``"invariant-1"`` makes the network read the 45 device-independent
   features derived from the 57 (``invariant.derive``), ``"invariant-2"`` the same with the
-  proximal bones against the palm's axis (``invariant.derive_palm``), and ``inputs`` index
-  those; absent or null, ``inputs`` index the 57 themselves (models trained before it).
+  proximal bones against the palm's axis (``invariant.derive_palm``), ``"invariant-3"`` those
+  with each yaw difference as its sine and cosine (60, ``invariant.continuous``), and
+  ``inputs`` index those; absent or null, ``inputs`` index the 57 themselves (models trained
+  before it).
 - Posterior averaging: at load, ``samples`` weight sets are drawn from the variational
   posterior q(w) (seeded by the weights' hash, so the same model gives the same draws) and kept
   as stacked numpy arrays; a prediction is the mean of the softmax over those networks. Fixed
@@ -327,7 +329,7 @@ def check_metadata(meta: dict, arch: bayes.Architecture) -> None:
         raise ConfigError(f"model feature transform {transform!r} is unknown to this cbgo "
                           f"(knows {', '.join(invariant.TRANSFORMS)}); retrain with "
                           "`cbgo train static`")
-    width = F.N_FEATURES if transform is None else invariant.N_DERIVED
+    width = F.N_FEATURES if transform is None else len(invariant.names_of(transform))
     inputs = meta["inputs"]
     if len(inputs) != arch.n_in or not all(0 <= int(i) < width for i in inputs):
         raise ConfigError(f"model inputs must be {arch.n_in} feature indices in 0..{width - 1}")

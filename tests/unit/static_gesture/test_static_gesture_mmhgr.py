@@ -102,6 +102,24 @@ def test_derived_features_ignore_the_2pi_jumps_of_the_57():
     assert invariant.derive(x).shape == (20, invariant.N_DERIVED)
 
 
+def test_continuous_features_read_a_yaw_near_plus_and_minus_pi_as_one_curl():
+    rng = np.random.default_rng(1)
+    derived = rng.normal(0.0, 0.5, (2, invariant.N_DERIVED))
+    derived[0, invariant.YAWS] = np.pi - 0.01
+    derived[1, invariant.YAWS] = -np.pi + 0.01
+    derived[1, ~np.isin(np.arange(invariant.N_DERIVED), invariant.YAWS)] = derived[
+        0, ~np.isin(np.arange(invariant.N_DERIVED), invariant.YAWS)]
+    out = invariant.continuous(derived)
+    assert out.shape == (2, len(invariant.NAMES_CONTINUOUS)) == (2, invariant.N_DERIVED + 15)
+    assert np.abs(out[0] - out[1]).max() < 0.03  # 2π apart before, 0.02 rad apart in fact
+    assert np.abs(derived[0] - derived[1]).max() > 6.0
+    k = invariant.NAMES_CONTINUOUS.index("index_distal_dyaw_cos")
+    assert out[0, k] == pytest.approx(np.cos(np.pi - 0.01))
+    x57 = rng.normal(0.0, 0.5, (3, 57))
+    assert invariant.transform(x57, invariant.TRANSFORM_CONTINUOUS) == pytest.approx(
+        invariant.continuous(invariant.derive_palm(x57)))
+
+
 def test_the_palm_axis_features_keep_a_fingers_bend_whatever_the_hands_pitch():
     # The same pose held 25° higher or lower: the proximal features of `derive` move by about
     # twice that (they carry the hand's pitch), those against the palm axis stay put.

@@ -118,11 +118,11 @@ def test_the_shipped_model_metadata_is_complete():
     assert meta["names"] == [*STATIC_GESTURES, "none"]
     assert meta["feature_version"] == F.FEATURE_VERSION
     # the device-independent features, derived from the 57 (no wrist, metacarpal or thumb-
-    # metacarpal convention)
-    assert meta["transform"] == invariant.TRANSFORM_PALM
-    assert meta["inputs"] == list(range(invariant.N_DERIVED))
-    assert meta["feature_names"] == list(invariant.NAMES)
-    assert len(meta["standardizer"]["mean"]) == len(meta["standardizer"]["std"]) == 45
+    # metacarpal convention), yaw differences as sine and cosine
+    assert meta["transform"] == invariant.TRANSFORM_CONTINUOUS
+    assert meta["inputs"] == list(range(len(invariant.NAMES_CONTINUOUS)))
+    assert meta["feature_names"] == list(invariant.NAMES_CONTINUOUS)
+    assert len(meta["standardizer"]["mean"]) == len(meta["standardizer"]["std"]) == 60
     assert meta["real_data_sha256"] == real_features_sha256()
     assert len(meta["data_hash"]) == 16 and meta["user_gestures"] == []
     per_source = meta["dataset"]["per_source"]
