@@ -19,7 +19,9 @@ Rules (the model files are written by ``cbgo.services.static_gesture.train``):
 - ``transform`` (optional): ``"invariant-1"`` makes the network read the 45 device-independent
   features derived from the 57 (``invariant.derive``), ``"invariant-2"`` the same with the
   proximal bones against the palm's axis (``invariant.derive_palm``), ``"invariant-3"`` those
-  with each yaw difference as its sine and cosine (60, ``invariant.continuous``), and
+  with each yaw difference as its sine and cosine (60, ``invariant.continuous``),
+  ``"invariant-4"`` their proximal bones and distances with the joints' angles in 3-D (49,
+  ``invariant.bends``), and
   ``inputs`` index those; absent or null, ``inputs`` index the 57 themselves (models trained
   before it).
 - Posterior averaging: at load, ``samples`` weight sets are drawn from the variational

@@ -37,7 +37,10 @@ TRANSFORM_PALM = "invariant-2"
 """The same features with every proximal bone against the palm's own axis (`derive_palm`)."""
 TRANSFORM_CONTINUOUS = "invariant-3"
 """`derive_palm`'s features with every yaw difference as its sine and cosine (`continuous`)."""
-TRANSFORMS = (TRANSFORM, TRANSFORM_PALM, TRANSFORM_CONTINUOUS)
+TRANSFORM_BENDS = "invariant-4"
+"""The proximal bones and distances of `continuous`, and each joint's bend and the fingers'
+spread as angles in 3-D (`bends`) in place of the other bones' pitch and yaw differences."""
+TRANSFORMS = (TRANSFORM, TRANSFORM_PALM, TRANSFORM_CONTINUOUS, TRANSFORM_BENDS)
 
 _BONES = ("proximal_rel_hand", "intermediate", "distal")
 NAMES: tuple[str, ...] = (
@@ -48,7 +51,12 @@ YAWS = np.array([k for k, name in enumerate(NAMES) if name.endswith("_dyaw")])
 NAMES_CONTINUOUS: tuple[str, ...] = tuple(
     part for name in NAMES
     for part in ((f"{name}_sin", f"{name}_cos") if name.endswith("_dyaw") else (name,)))
+BEND_NAMES: tuple[str, ...] = (
+    tuple(f"{f}_{j}_bend" for f in FINGER_TYPES for j in ("proximal", "intermediate", "distal"))
+    + ("spread_thumb_index", "spread_index_middle", "spread_middle_ring", "spread_ring_pinky"))
 _KEPT = np.array([k for k in range(N_DERIVED) if k not in YAWS])
+_BEND_KEPT = np.array([k for k, name in enumerate(NAMES_CONTINUOUS)
+                       if "_proximal_" in name or name.startswith("dist_")])
 _KEPT_TO = np.array([NAMES_CONTINUOUS.index(NAMES[k]) for k in _KEPT])
 _SIN_TO = np.array([NAMES_CONTINUOUS.index(f"{NAMES[k]}_sin") for k in YAWS])
 THUMB_PROXIMAL = (0, 1)
@@ -132,8 +140,49 @@ def continuous(derived: np.ndarray) -> np.ndarray:
     return out
 
 
+def _direction(pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """Returns unit vectors (..., 3) of pitch = asin(−d_y), yaw = atan2(d_x, d_z)."""
+    return np.stack([np.cos(pitch) * np.sin(yaw), -np.sin(pitch), np.cos(pitch) * np.cos(yaw)],
+                    -1)
+
+
+def bends(x57: np.ndarray) -> np.ndarray:
+    """Returns (N, 19) angles between bones in 3-D: each joint's bend and the fingers' spread.
+
+    Why: the 57 are pitch and yaw differences in the sensor's frame, so the same bend reads
+    otherwise when the whole hand turns (and a yaw means nothing for a bone pointing up); the
+    angle between two bones is the same however the hand is held. The 57 hold every bone's
+    pitch and yaw against the one before, and the metacarpals (tip to base, so about twice the
+    hand's pitch) give the hand's own pitch: that fixes every bone's direction up to a turn
+    about the vertical, which no angle between bones sees.
+
+    Returns:
+        per finger thumb..pinky, the proximal bone against the palm's axis (the mean of the
+        index..pinky metacarpals), the intermediate against the proximal, the distal against
+        the intermediate; then thumb–index, index–middle, middle–ring and ring–pinky proximals
+        (rad, 0 = straight / together).
+    """
+    x = np.atleast_2d(np.asarray(x57, dtype=np.float64))
+    steps = x[:, 2:42].reshape(len(x), 5, 4, 2)
+    hand = np.stack([steps[:, 1:, 0, 0].mean(1) / 2.0, np.zeros(len(x))], -1)  # pitch, yaw
+    angles = hand[:, None, None, :] - np.cumsum(steps, axis=2)  # (N, 5, 4, 2) per bone
+    dirs = _direction(angles[..., 0], angles[..., 1])  # tip to base, (N, 5, 4, 3)
+    axis = dirs[:, 1:, 0].sum(1)
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+
+    def between(a, b):
+        return np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0))
+
+    bent = np.stack([between(axis[:, None], dirs[:, :, 1]), between(dirs[:, :, 1], dirs[:, :, 2]),
+                     between(dirs[:, :, 2], dirs[:, :, 3])], -1).reshape(len(x), 15)
+    spread = np.stack([between(dirs[:, f, 1], dirs[:, f + 1, 1]) for f in range(4)], -1)
+    return np.concatenate([bent, spread], 1)
+
+
 def names_of(name: str) -> tuple[str, ...]:
     """Returns the feature names of a feature set named in `TRANSFORMS`."""
+    if name == TRANSFORM_BENDS:
+        return tuple(NAMES_CONTINUOUS[k] for k in _BEND_KEPT) + BEND_NAMES
     return NAMES_CONTINUOUS if name == TRANSFORM_CONTINUOUS else NAMES
 
 
@@ -141,6 +190,8 @@ def transform(x57: np.ndarray, name: str) -> np.ndarray:
     """Returns the derived features of a feature set named in `TRANSFORMS`."""
     if name == TRANSFORM_CONTINUOUS:
         return continuous(derive_palm(x57))
+    if name == TRANSFORM_BENDS:
+        return np.concatenate([continuous(derive_palm(x57))[:, _BEND_KEPT], bends(x57)], 1)
     return derive_palm(x57) if name == TRANSFORM_PALM else derive(x57)
 
 

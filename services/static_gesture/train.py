@@ -42,7 +42,10 @@ cosine (``invariant.continuous``: 60 inputs), standardised with the training mea
 ``invariant-2`` keeps the yaw differences wrapped into (−π, π], where a curled finger's lands
 near either end; leave-one-person-out on the HGR set it scored 91.69 % balanced against 91.96 %
 and rejected 62.4 % of the held-out unknown poses against 65.9 % (services/static_gesture/
-README.md). ``invariant-1`` (proximal bones against the hand direction) is the default before;
+README.md). ``invariant-4`` keeps the proximal bones and distances and reads the other bones as
+angles in 3-D (``invariant.bends``): better on the HGR set's people and at every angle, worse
+where joint conventions shift (README). ``invariant-1`` (proximal bones against the hand
+direction) is the default before;
 on the HGR set's five folds of people (``cbgo bench static --folds 5`` of a model trained with
 each) it scored 92.2 % balanced against 92.4 %, rejected 58 % of the held-out unknown poses
 against 62 %, and 91.3 % against 91.9 % with the test hands pitched 30° down. ``raw`` is the

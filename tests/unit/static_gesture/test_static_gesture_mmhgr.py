@@ -120,6 +120,33 @@ def test_continuous_features_read_a_yaw_near_plus_and_minus_pi_as_one_curl():
         invariant.continuous(invariant.derive_palm(x57)))
 
 
+def test_bends_are_the_angles_between_bones_however_the_hand_is_held():
+    shape = HandShape.sample(np.random.default_rng(5), side="left")
+    pose = gesture_pose("two", np.random.default_rng(6))
+    turns = ((0, 0), (60, 0), (0, 50), (-90, 30))
+    hands = [build_hand(shape, pose.rotated(roll=np.deg2rad(r), pitch=np.deg2rad(p)),
+                        np.array([0.0, 200.0, 10.0])) for r, p in turns]
+    bent = invariant.bends(F.hands_features(hands))
+    assert bent.shape == (4, len(invariant.BEND_NAMES))
+    # within a few degrees: every bone's direction leans on the hand's pitch, read from the
+    # metacarpals, which fan out a little about the hand direction
+    assert np.ptp(bent, axis=0).max() < np.deg2rad(6)
+    straight = [k for k, name in enumerate(invariant.BEND_NAMES) if name.startswith("index")]
+    assert np.ptp(bent[:, straight], axis=0).max() < np.deg2rad(2)
+
+    def unit(bone):
+        v = np.subtract(bone["prev_joint"], bone["next_joint"])
+        return v / np.linalg.norm(v)
+
+    index = hands[0]["fingers"][1]["bones"]
+    k = invariant.BEND_NAMES.index("index_intermediate_bend")
+    assert bent[0, k] == pytest.approx(np.arccos(unit(index[1]) @ unit(index[2])), abs=2e-3)
+    names = invariant.names_of(invariant.TRANSFORM_BENDS)
+    x = invariant.transform(F.hands_features(hands), invariant.TRANSFORM_BENDS)
+    assert x.shape == (4, len(names)) and names[-len(invariant.BEND_NAMES):] == \
+        invariant.BEND_NAMES
+
+
 def test_the_palm_axis_features_keep_a_fingers_bend_whatever_the_hands_pitch():
     # The same pose held 25° higher or lower: the proximal features of `derive` move by about
     # twice that (they carry the hand's pitch), those against the palm axis stay put.
