@@ -196,7 +196,7 @@ def transform(x57: np.ndarray, name: str) -> np.ndarray:
 
 
 def augment(x57: np.ndarray, rng: np.random.Generator, size: tuple[float, float] = (0.85, 1.15),
-            angle_sd: float = 0.05, palm_sd_mm: float = 6.0) -> np.ndarray:
+            angle_sd: float = 0.05, palm_sd_mm: float = 6.0, curl_deg: float = 0.0) -> np.ndarray:
     """Returns a copy of (N, 57) rows with device- and person-style variation.
 
     Args:
@@ -206,6 +206,9 @@ def augment(x57: np.ndarray, rng: np.random.Generator, size: tuple[float, float]
         angle_sd: std (rad) of independent noise on every bone angle (joint placement).
         palm_sd_mm: std of a per-row shift of the five fingertip-to-palm distances (where a
             device puts the palm centre).
+        curl_deg: the index..pinky intermediate and distal bones of a row bent by one U(0,
+            this) more (degrees): how far a device or a person lets open fingers curl (the
+            paper's fives bend them 3 ± 1°, the HGR set's 9 ± 9°).
 
     Returns:
         float64 (N, 57).
@@ -213,6 +216,9 @@ def augment(x57: np.ndarray, rng: np.random.Generator, size: tuple[float, float]
     x = np.array(x57, dtype=np.float64, copy=True)
     n = len(x)
     x[:, 2:42] += rng.normal(0.0, angle_sd, (n, 40))
+    if curl_deg > 0.0:
+        bones = x[:, 2:42].reshape(n, 5, 4, 2)  # a view: pitch differences of later bones
+        bones[:, 1:, 2:, 0] += np.deg2rad(rng.uniform(0.0, curl_deg, (n, 1, 1)))
     x[:, F.DISTANCE_FEATURES] *= rng.uniform(*size, (n, 1))
     x[:, F.DISTANCE_FEATURES[_PALM_PAIRS]] += rng.normal(0.0, palm_sd_mm, (n, 1))
     x[:, F.DISTANCE_FEATURES] = np.maximum(x[:, F.DISTANCE_FEATURES], 0.0)

@@ -32,7 +32,9 @@ left-hand space):
 
 The recorded rows (the paper's and the HGR set's) also come once more with device- and
 person-style variation (``invariant.augment``: hand size 0.85–1.15, 0.05 rad per bone angle,
-palm-centre placement ±6 mm). Classes are weighted to equal total weight in the likelihood.
+palm-centre placement ±6 mm; ``--curl-deg`` also bends their open fingers by up to that many
+degrees, 0 by default: the README gives its figures). Classes are weighted to equal total
+weight in the likelihood.
 
 Inputs (``--features``): by default ``invariant-3``, the 45 device-independent features derived
 from the 57 with every proximal bone against the palm's axis (``invariant.derive_palm``: no
@@ -141,6 +143,7 @@ class TrainOptions:
     augment_copies: int = 1
     rotate_deg: float = 20.0
     rotate_shape_deg: float | None = None
+    curl_deg: float = 0.0
 
     def __post_init__(self):
         if self.features not in ("raw", *invariant.TRANSFORMS):
@@ -465,7 +468,7 @@ def build_dataset(options: TrainOptions, real: tuple | None = None,
         # ones already vary in size, placement and angle.
         for x, y, src in [p for p in parts if p[2] is not None and _recorded(p[2])]:
             for _ in range(options.augment_copies):
-                parts.append((invariant.augment(x, rng), y, src))
+                parts.append((invariant.augment(x, rng, curl_deg=options.curl_deg), y, src))
     return Dataset(
         x=np.concatenate([p[0] for p in parts]), y=np.concatenate([p[1] for p in parts]),
         names=names, source=np.concatenate([np.broadcast_to(p[2], len(p[1])) for p in parts]),
@@ -726,6 +729,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "and rolled hands 9-39 points better and hands held as usual "
                              "0.7 points worse (services/static_gesture/README.md) "
                              "[as --rotate-deg]")
+    parser.add_argument("--curl-deg", type=float, default=d.curl_deg,
+                        help="bend the recorded rows' open fingers by up to this many degrees "
+                             "in their device- and person-style copies (devices and people "
+                             f"curl open fingers differently) [{d.curl_deg:g}]")
     parser.add_argument("--no-user-gestures", action="store_true",
                         help="leave out the gestures recorded by demonstration")
     parser.add_argument("--validate", action="store_true",
@@ -741,6 +748,7 @@ def options_from(args: argparse.Namespace) -> TrainOptions:
                         off_vocabulary=args.off_vocabulary, features=args.features,
                         mmhgr=not args.no_mmhgr, mmhgr_stride=args.mmhgr_stride,
                         rotate_deg=args.rotate_deg, rotate_shape_deg=args.rotate_shape_deg,
+                        curl_deg=args.curl_deg,
                         user_gestures=not (args.no_user_gestures or args.shipped))
 
 

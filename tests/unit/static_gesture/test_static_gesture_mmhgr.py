@@ -147,6 +147,20 @@ def test_bends_are_the_angles_between_bones_however_the_hand_is_held():
         invariant.BEND_NAMES
 
 
+def test_the_curl_augmentation_bends_the_later_bones_of_the_four_fingers_alike():
+    rng = np.random.default_rng(2)
+    x = rng.normal(0.0, 0.5, (50, 57))
+    x[:, 42:] = rng.uniform(20.0, 120.0, (50, 15))  # distances, mm
+    out = invariant.augment(x, np.random.default_rng(3), size=(1.0, 1.0), angle_sd=0.0,
+                            palm_sd_mm=0.0, curl_deg=15.0)
+    moved = (out - x)[:, 2:42].reshape(50, 5, 4, 2)
+    curl = moved[:, 1:, 2:, 0].reshape(50, -1)
+    assert np.allclose(curl, curl[:, :1]) and (curl >= 0).all()
+    assert curl.max() <= np.deg2rad(15.0) and curl.max() > np.deg2rad(10.0)
+    moved[:, 1:, 2:, 0] = 0.0
+    assert np.allclose(moved, 0.0) and np.allclose(out[:, 42:], x[:, 42:])
+
+
 def test_the_palm_axis_features_keep_a_fingers_bend_whatever_the_hands_pitch():
     # The same pose held 25° higher or lower: the proximal features of `derive` move by about
     # twice that (they carry the hand's pitch), those against the palm axis stay put.
