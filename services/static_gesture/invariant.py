@@ -140,12 +140,6 @@ def continuous(derived: np.ndarray) -> np.ndarray:
     return out
 
 
-def _direction(pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-    """Returns unit vectors (..., 3) of pitch = asin(−d_y), yaw = atan2(d_x, d_z)."""
-    return np.stack([np.cos(pitch) * np.sin(yaw), -np.sin(pitch), np.cos(pitch) * np.cos(yaw)],
-                    -1)
-
-
 def bends(x57: np.ndarray) -> np.ndarray:
     """Returns (N, 19) angles between bones in 3-D: each joint's bend and the fingers' spread.
 
@@ -166,7 +160,7 @@ def bends(x57: np.ndarray) -> np.ndarray:
     steps = x[:, 2:42].reshape(len(x), 5, 4, 2)
     hand = np.stack([steps[:, 1:, 0, 0].mean(1) / 2.0, np.zeros(len(x))], -1)  # pitch, yaw
     angles = hand[:, None, None, :] - np.cumsum(steps, axis=2)  # (N, 5, 4, 2) per bone
-    dirs = _direction(angles[..., 0], angles[..., 1])  # tip to base, (N, 5, 4, 3)
+    dirs = F.direction_of(np, angles[..., 0], angles[..., 1])  # tip to base (N, 5, 4, 3)
     axis = dirs[:, 1:, 0].sum(1)
     axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
 

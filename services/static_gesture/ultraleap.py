@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from cbgo.hands import features as F
 from cbgo.wire import BONE_TYPES, FINGER_TYPES
 
 POSES_DIR = Path(__file__).with_name("ultraleap_poses")
@@ -71,13 +72,17 @@ def read_pose(path: Path) -> dict:
     return _lower_keys(yaml.safe_load(text))["monoBehaviour"]
 
 
+def _leap(v: dict) -> np.ndarray:
+    """A Unity vector in the Leap frame's axes (z flipped), its units kept."""
+    return np.array([v["x"], v["y"], -v["z"]], dtype=np.float64)
+
+
 def _mm(v: dict) -> np.ndarray:
-    return np.array([1000.0 * v["x"], 1000.0 * v["y"], -1000.0 * v["z"]])
+    return 1000.0 * _leap(v)
 
 
 def _unit(v: dict) -> list[float]:
-    u = np.array([v["x"], v["y"], -v["z"]], dtype=np.float64)
-    return (u / max(float(np.linalg.norm(u)), 1e-9)).tolist()
+    return F.unit(np, _leap(v)).tolist()
 
 
 def hand_of(serialized: dict, hand_id: int = 1) -> dict:
@@ -95,7 +100,7 @@ def hand_of(serialized: dict, hand_id: int = 1) -> dict:
     return {"id": hand_id, "side": "left" if serialized["isLeft"] else "right",
             "confidence": float(np.clip(serialized["confidence"], 0.0, 1.0)),
             "palm_position": list(FIELD_CENTRE_MM),
-            "palm_velocity": (_mm(serialized["palmVelocity"])).tolist(),
+            "palm_velocity": _mm(serialized["palmVelocity"]).tolist(),
             "palm_normal": _unit(serialized["palmNormal"]),
             "direction": _unit(serialized["direction"]),
             "wrist_position": point(serialized["wristPosition"]),
@@ -117,11 +122,9 @@ def load_poses(folder: Path = POSES_DIR) -> dict[str, list[dict]]:
 
 def palm_frame(hand: dict) -> np.ndarray:
     """Returns the rows direction, palm normal (made orthogonal) and their cross product."""
-    d = np.asarray(hand["direction"], dtype=np.float64)
-    d /= np.linalg.norm(d)
+    d = F.unit(np, np.asarray(hand["direction"], dtype=np.float64))
     n = np.asarray(hand["palm_normal"], dtype=np.float64)
-    n = n - d * float(n @ d)
-    n /= np.linalg.norm(n)
+    n = F.unit(np, n - d * float(n @ d))
     return np.stack([d, n, np.cross(d, n)])
 
 

@@ -83,6 +83,12 @@ def pitch_yaw(xp: Any, d: Any) -> tuple[Any, Any]:
     return xp.arcsin(xp.clip(-d[..., 1], -limit, limit)), xp.arctan2(d[..., 0], d[..., 2])
 
 
+def direction_of(xp: Any, pitch: Any, yaw: Any) -> Any:
+    """Returns the unit vectors (..., 3) whose `pitch_yaw` is (pitch, yaw)."""
+    return xp.stack([xp.cos(pitch) * xp.sin(yaw), -xp.sin(pitch),
+                     xp.cos(pitch) * xp.cos(yaw)], -1)
+
+
 def unit(xp: Any, v: Any) -> Any:
     """Returns ``v`` (..., 3) divided by its norm (zero vectors stay zero)."""
     norm = xp.sqrt((v * v).sum(-1, keepdims=True))

@@ -183,3 +183,8 @@ def test_the_real_recordings_show_the_tip_to_base_bone_convention():
         yaw = five[:, bone(finger, 0)[1]]
         mean = math.atan2(np.sin(yaw).mean(), np.cos(yaw).mean())
         assert abs(abs(mean) - PI) < 0.35
+
+
+def test_direction_of_inverts_pitch_yaw():
+    d = F.unit(np, np.random.default_rng(0).normal(size=(50, 3)))
+    assert np.allclose(F.direction_of(np, *F.pitch_yaw(np, d)), d, atol=1e-12)
