@@ -410,7 +410,7 @@ def _goals(fig: dict) -> list[tuple[str, bool | None, str]]:
         ("unknown poses held out of training rejected ≥ 90 %",
          None if cv is None else cv["rejection_overall"] >= GOALS["unknown_rejection"],
          "skipped" if cv is None else f"{cv['rejection_overall']:.1%}"),
-        ("unknown poses of unseen people, of a kind trained as none (an ok sign), rejected "
+        ("unknown poses of unseen people, of a kind trained as none (an L, horns), rejected "
          "≥ 90 %", None if cv is None or cv.get("rejection_seen_overall") is None
          else cv["rejection_seen_overall"] >= GOALS["unknown_rejection"],
          "skipped" if cv is None or cv.get("rejection_seen_overall") is None

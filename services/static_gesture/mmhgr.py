@@ -57,10 +57,15 @@ from cbgo.wire import BONE_TYPES, FINGER_TYPES
 POSES = ("C", "L", "down", "fist_moved", "five", "four", "hang", "heavy", "index", "ok",
          "palm", "palm_m", "palm_u", "three", "two", "up")
 POSE_MAP = {"fist_moved": "grab", "index": "point", "two": "two", "three": "three",
-            "four": "four", "five": "five", "up": "thumbsup"}
+            "four": "four", "five": "five", "up": "thumbsup", "ok": "pinch"}
+"""The set's poses that are cbgo gestures. ``ok`` is ``pinch``: the paper's authors define
+their pinch as "grip between finger and thumb, while last three fingers are open"
+(imitrob/teleop_gesture_toolbox, include/custom_settings/gestures.yaml), an ok sign's shape,
+and their recorded pinches are one (thumb and index tips 18 ± 13 mm apart, the other three
+fingers straight; the set's ok signs 29 ± 20 mm)."""
 POSE_FINGERS = {"fist_moved": (0, 0, 0, 0), "up": (0, 0, 0, 0), "index": (1, 0, 0, 0),
                 "two": (1, 1, 0, 0), "three": (1, 1, 1, 0), "four": (1, 1, 1, 1),
-                "five": (1, 1, 1, 1)}
+                "five": (1, 1, 1, 1), "ok": (0, 1, 1, 1)}
 """Which of index, middle, ring and pinky each gesture pose holds out (the thumb left aside:
 the tracker flags it extended in a quarter of the set's fists)."""
 AMBIGUOUS = ("palm", "palm_m", "palm_u")

@@ -26,9 +26,9 @@ Rules:
   the calibrated poses (``cbgo.hands.poses.gesture_mean``) of ``five``, ``grab``, ``point`` and
   ``thumbsup``: what the model makes of the same hand shape held as the training hands were.
 - `POSES` maps the files to cbgo's vocabulary: ``fist`` → grab, ``open_palm`` → five,
-  ``point``, ``thumbs_up`` and ``thumbs_extended`` → thumbsup, ``v`` → two; ``ok`` and
-  ``horns`` are no gesture of ours (``none``: right when answered ``none`` or with top
-  p < 0.5).
+  ``point``, ``thumbs_up`` and ``thumbs_extended`` → thumbsup, ``v`` → two, ``ok`` → pinch
+  (the paper's pinch is an ok sign's shape: ``mmhgr.POSE_MAP``); ``horns`` is no gesture of
+  ours (``none``: right when answered ``none`` or with top p < 0.5).
 
 Example::
 
@@ -48,7 +48,7 @@ from cbgo.wire import BONE_TYPES, FINGER_TYPES
 
 POSES_DIR = Path(__file__).with_name("ultraleap_poses")
 POSES = {"fist": "grab", "open_palm": "five", "point": "point", "thumbs_up": "thumbsup",
-         "thumbs_extended": "thumbsup", "v": "two", "ok": "none", "horns": "none"}
+         "thumbs_extended": "thumbsup", "v": "two", "ok": "pinch", "horns": "none"}
 FIELD_CENTRE_MM = (0.0, 200.0, 0.0)
 TRAINING_ORIENTATIONS = ("five", "grab", "point", "thumbsup")
 REJECT_BELOW = 0.5  # an unknown pose answered with a top probability below this is rejected

@@ -48,7 +48,7 @@ def _hand(name, side, seed):
 
 def write_dataset(root, people=(1, 2), poses=("fist_moved", "five", "up", "ok"), per_pose=3):
     """Writes user_NN/train_pose/<pose>/frame_K.xml files; returns the hands in file order."""
-    gesture_of = {"fist_moved": "grab", "ok": "pinch", "C": "two", **{
+    gesture_of = {"fist_moved": "grab", "ok": "pinch", "C": "two", "L": "point", **{
         p: g for p, g in mmhgr.POSE_MAP.items() if p not in ("fist_moved",)}}
     hands = {}
     for user in people:
@@ -77,7 +77,8 @@ def test_a_converted_frame_reads_the_same_as_the_contract_hand_it_came_from(tmp_
     want = invariant.derive(F.hands_features(originals, to_recorded_side=True))
     assert invariant.derive(x) == pytest.approx(want, abs=1e-3)
     assert list(frames.labels()[frames.pose == "up"]) == ["thumbsup"] * 6
-    assert set(frames.labels()[frames.pose == "ok"]) == {""}
+    # the paper's pinch is an ok sign (thumb on index, the other three open)
+    assert set(frames.labels()[frames.pose == "ok"]) == {"pinch"}
 
 
 def test_a_frame_without_a_hand_is_skipped():
@@ -190,7 +191,7 @@ def test_a_converted_frame_reads_its_palm_axis_from_the_hand_direction(tmp_path)
 
 def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp_path):
     write_dataset(tmp_path / "src", people=(1, 2, 3, 4),
-                  poses=("fist_moved", "five", "up", "ok", "C"), per_pose=2)
+                  poses=("fist_moved", "five", "up", "C", "L"), per_pose=2)
     mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     options = train.TrainOptions(per_gesture=2, none=4, off_vocabulary=4, hidden=[4],
@@ -200,7 +201,7 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert fig["folds"] == 2 and len(lines) == 2 and fig["people"] == 4
     assert fig["classes"] == ["grab", "five", "thumbsup"] and fig["n"] == 4 * 3 * 2
     assert set(fig["per_person"]) == {1, 2, 3, 4}
-    assert set(fig["rejection"]) <= {"ok", "C"} and fig["rejection_n"] > 0
+    assert set(fig["rejection"]) <= {"C", "L"} and fig["rejection_n"] > 0
     assert sum(b["n"] for b in fig["by_confidence"]) == fig["n"]
     assert set(fig["turned"]) == set(crossval.TURNS)
     assert fig["rejection_overall"] >= fig["network"]["rejection_overall"]
@@ -218,7 +219,9 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     ("three", (0, 1, 1, 1, 1), False),   # the skeleton holds the pinky out: a four
     ("fist_moved", (1, 0, 0, 0, 0), True),
     ("index", (0, 1, 1, 0, 0), False),
-    ("ok", (0, 0, 1, 1, 1), False),      # not a gesture pose
+    ("ok", (0, 0, 1, 1, 1), True),       # pinch: the index on the thumb, the others open
+    ("ok", (0, 1, 1, 1, 1), False),
+    ("C", (0, 1, 1, 1, 1), False),       # not a gesture pose
 ])
 def test_a_frame_agrees_with_its_pose_when_the_trackers_finger_flags_show_it(
         tmp_path, pose, flags, agrees):
