@@ -335,6 +335,65 @@ def features57(frames: Frames, rotation: np.ndarray | None = None) -> np.ndarray
     return x
 
 
+SPLICE_OPEN, SPLICE_CLOSED = "five", "fist_moved"
+
+
+def palm_basis(frames: Frames) -> np.ndarray:
+    """Returns (N, 3, 3) rows: the hand direction, the palm normal (made orthogonal), their cross."""
+    from cbgo.hands import features as F  # noqa: PLC0415 - keeps `convert` light
+
+    d = F.unit(np, frames.direction.astype(np.float64))
+    n = frames.normal.astype(np.float64)
+    n = F.unit(np, n - np.sum(n * d, -1, keepdims=True) * d)
+    return np.stack([d, n, np.cross(d, n)], 1)
+
+
+def splice_fingers(frames: Frames, patterns: np.ndarray, count: int,
+                   rng: np.random.Generator) -> Frames:
+    """Real-looking hands of poses nobody recorded, each finger taken from one person's real frames.
+
+    Why: a `none` class learnt from simulated poses outside the vocabulary teaches the model
+    what a simulated hand looks like, not what an unknown real pose looks like. Each spliced
+    hand is one person's fist (`SPLICE_CLOSED`, same side), with the fingers that `patterns`
+    holds out taken from one of their open hands (`SPLICE_OPEN`): each such finger is moved
+    from the open hand's palm frame (direction, normal) into the fist's. Curls, knuckle
+    placement and tracker noise are that person's and that device's.
+
+    Args:
+        frames: the frames to splice from (only the people one trains on).
+        patterns: (K, 5) bools per pose, thumb..pinky: True takes the open hand's finger.
+        count: how many hands.
+        rng: the random generator.
+
+    Returns:
+        Frames of pose ``"spliced"``, the fist's fields otherwise, ``extended`` the pattern.
+    """
+    groups = []
+    for user in np.unique(frames.user):
+        for side in ("left", "right"):
+            own = (frames.user == user) & (frames.side == side)
+            group = (np.flatnonzero(own & (frames.pose == SPLICE_OPEN)),
+                     np.flatnonzero(own & (frames.pose == SPLICE_CLOSED)))
+            if len(group[0]) and len(group[1]):
+                groups.append(group)
+    if count <= 0 or not groups or not len(patterns):
+        return frames.subset(np.zeros(0, dtype=np.int64))
+    pick = rng.integers(len(groups), size=count)
+    open_rows = np.array([rng.choice(groups[g][0]) for g in pick])
+    closed_rows = np.array([rng.choice(groups[g][1]) for g in pick])
+    pattern = np.asarray(patterns, dtype=bool)[rng.integers(len(patterns), size=count)]
+    opened, closed = frames.subset(open_rows), frames.subset(closed_rows)
+    local = np.einsum("nij,nfkj->nfki", palm_basis(opened),
+                      opened.joints - opened.palm[:, None, None])
+    moved = np.einsum("nji,nfkj->nfki", palm_basis(closed), local) + closed.palm[:, None, None]
+    out = closed.subset(np.arange(count))
+    out.joints = np.where(pattern[:, :, None, None], moved, closed.joints).astype(
+        closed.joints.dtype)
+    out.extended = pattern
+    out.pose = np.full(count, "spliced")
+    return out
+
+
 def random_rotations(rng: np.random.Generator, n: int, deg: float | np.ndarray) -> np.ndarray:
     """Returns (n, 3, 3) rotations by roll, pitch, yaw each drawn from N(0, deg).
 

@@ -245,3 +245,43 @@ def test_wider_turns_spare_the_thumb_poses_told_apart_by_orientation(tmp_path):
     moved = ~np.isclose(wide, still).all(axis=1)
     thumbs = y == names.index("thumbsup")
     assert not moved[thumbs].any() and moved[~thumbs].all()
+
+
+def test_a_spliced_hand_is_one_persons_fist_with_fingers_of_their_open_hand(tmp_path):
+    write_dataset(tmp_path / "src", people=(1, 2), poses=("fist_moved", "five"), per_pose=3)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    horns = np.array([[0, 1, 0, 0, 1]], dtype=bool)
+    spliced = mmhgr.splice_fingers(frames, horns, 40, np.random.default_rng(0))
+    assert len(spliced) == 40 and set(spliced.pose) == {"spliced"}
+    assert spliced.extended.tolist() == [[False, True, False, False, True]] * 40
+
+    def local(f):
+        return np.einsum("nij,nfkj->nfki", mmhgr.palm_basis(f), f.joints - f.palm[:, None, None])
+
+    fists, fives = (frames.subset(frames.pose == p) for p in ("fist_moved", "five"))
+    got, fist_local, five_local = local(spliced), local(fists), local(fives)
+    for n in range(len(spliced)):
+        own = fists.user == spliced.user[n]
+        # the curled fingers and the palm are one of the same person's fists ...
+        assert [k for k in np.flatnonzero(own)
+                if np.allclose(got[n, [0, 2, 3]], fist_local[k, [0, 2, 3]], atol=1e-3)]
+        # ... and the index and pinky those of one of their open hands, in the palm's frame
+        donors = [k for k in np.flatnonzero(fives.user == spliced.user[n])
+                  if np.allclose(got[n, [1, 4]], five_local[k, [1, 4]], atol=1e-3)]
+        assert donors
+    x = invariant.bends(mmhgr.features57(spliced))
+    assert x[:, 3:6].sum(1).max() < x[:, 6:9].sum(1).min()  # the index straight, the middle bent
+
+
+def test_spliced_hands_train_none_when_asked(tmp_path):
+    write_dataset(tmp_path / "src", people=(1,), poses=("fist_moved", "five"), per_pose=3)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    names = ["grab", "five", "none"]
+    rng = np.random.default_rng(0)
+    plain = train.mmhgr_rows(frames, names, train.TrainOptions(mmhgr_stride=1), rng)
+    more = train.mmhgr_rows(frames, names, train.TrainOptions(mmhgr_stride=1, spliced_none=7),
+                            rng)
+    assert len(more[1]) == len(plain[1]) + 7
+    assert more[1][-7:].tolist() == [2] * 7 and set(more[2][-7:]) == {"mmhgr_none"}
