@@ -339,7 +339,7 @@ SPLICE_OPEN, SPLICE_CLOSED = "five", "fist_moved"
 
 
 def palm_basis(frames: Frames) -> np.ndarray:
-    """Returns (N, 3, 3) rows: the hand direction, the palm normal (made orthogonal), their cross."""
+    """Returns (N, 3, 3) rows: hand direction, palm normal (made orthogonal), their cross."""
     from cbgo.hands import features as F  # noqa: PLC0415 - keeps `convert` light
 
     d = F.unit(np, frames.direction.astype(np.float64))
