@@ -11,6 +11,10 @@ Figures (goals from issue 4 in brackets):
 1b. **Ultraleap's own Gemini-tracked poses** (``ultraleap``: 8 frames of one person, vendored
    from Ultraleap's Unity plugin, the only LMC2-generation skeletons we have): each pose's
    answer as held (fingers up, palm to the user) and turned like the training hands.
+1c. **Your own recorded takes** (``--takes LABEL=FILE.mcap ...``, then nothing else is
+   measured): recordings made with ``cbgo record ... hands/frame`` while one pose was held,
+   scored per take through the model (``takes``): the frames answered with the take's gesture,
+   or, for a label that is no gesture of the model, the frames rejected.
 2. **Held-out simulated users**: gestures performed by simulated people from a seed stream the
    trainer never uses (a new hand per rendition), plus no-gesture poses when the model has that
    class: balanced accuracy, ECE, confusion; and simulated users performing the ``static-all``
@@ -60,9 +64,10 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, wire
+from cbgo.errors import RecordingError
 from cbgo.hands.features import hands_features
 from cbgo.metrics import format_confusion
-from cbgo.services.static_gesture import crossval, invariant, mmhgr, train, ultraleap
+from cbgo.services.static_gesture import crossval, invariant, mmhgr, takes, train, ultraleap
 from cbgo.services.static_gesture.classifier import (
     DEFAULT_SAMPLES,
     NONE,
@@ -102,6 +107,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-crossval", action="store_true",
                         help="skip the cross-validation on real frames of unseen people")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    parser.add_argument("--takes", nargs="+", default=None, metavar="LABEL=FILE.mcap",
+                        help="only score recorded takes (`cbgo record ... hands/frame` while "
+                             "one pose is held; a label the model does not know, or none, is "
+                             "an unknown pose that should be rejected): your sensor, your "
+                             "people (services/static_gesture/takes.py)")
 
 
 def find_eval(explicit: Path | None) -> Path | None:
@@ -431,11 +441,31 @@ def recipe_of(clf: StaticClassifier) -> train.TrainOptions:
     return train.TrainOptions(**saved)
 
 
+def run_takes(clf: StaticClassifier, specs: list[str], fig: dict, json_path: Path | None
+              ) -> int:
+    """Scores recorded takes only (`takes`); 2 on a bad argument or file."""
+    try:
+        scores = takes.score_takes(clf, specs)
+    except (ValueError, RecordingError) as e:
+        print(f"cbgo bench static: --takes: {e}")
+        return 2
+    takes.print_scores(scores, clf.model_id)
+    fig["takes"] = {"per_take": [{"label": s.label, "path": s.path, "unknown": s.unknown,
+                                  "hands": s.hands, "right": s.right, "skipped": s.skipped,
+                                  "answers": dict(s.answers)} for s in scores],
+                    **takes.summary(scores)}
+    if json_path is not None:
+        json_path.write_text(json.dumps(fig, indent=2, default=float))
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Measures and prints every figure; writes them as JSON with ``--json``."""
     model_path = args.model or default_model_path()
     clf = StaticClassifier.load(model_path, args.samples)
     fig: dict = {"model": clf.describe()}
+    if args.takes:
+        return run_takes(clf, args.takes, fig, args.json)
     eval_path = find_eval(args.eval)
     if args.eval is not None and eval_path is None:
         print(f"cbgo bench static: --eval {args.eval}: no such file")

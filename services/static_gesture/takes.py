@@ -1,0 +1,154 @@
+"""Score recorded takes of static gestures: your sensor, your people, the model you run.
+
+Why: the figures of `cbgo bench static` come from the paper's recordings, the HGR set and
+simulated hands. A user with another sensor (a Leap Motion Controller 2, Gemini tracking) or
+other people measures what the model does for them by recording a few takes and scoring them
+here, the way issue 15's acceptance is measured: per take, the share of frames answered right.
+
+Rules:
+
+- A take is an MCAP recording (`cbgo record`) of ``hands/frame`` messages made while one pose
+  was held, named on the command line as ``LABEL=FILE``. Every hand of every frame is scored
+  through the model's own classifier (the same features and posterior the service computes).
+- A take labelled with a gesture of the model is right where that gesture is the top answer
+  with p ≥ 0.5; a take labelled ``none``, or with a name the model does not know (``ok``,
+  ``horns``...), is an unknown pose: right where the frame is rejected (``none`` on top or top
+  p < 0.5), as the episode service reads it.
+- Messages that break the ``hands/frame`` contract are counted and skipped, never scored.
+
+Example::
+
+    cbgo record -o five.mcap hands/frame --duration 10     # hold "five" for 10 s
+    cbgo record -o horns.mcap hands/frame --duration 10    # a pose that is no gesture
+    cbgo bench static --takes five=five.mcap horns=horns.mcap
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cbgo import keys, wire
+from cbgo.errors import RecordingError, RejectedMessage
+from cbgo.recording import read_recording
+from cbgo.services.static_gesture.classifier import NONE, StaticClassifier
+
+REJECT_BELOW = 0.5  # a frame whose top probability is below this is rejected (no gesture)
+FRAMES_KEY = "**/" + keys.HANDS_FRAME.suffix
+
+
+@dataclass
+class TakeScore:
+    """What a model answered to one take."""
+
+    label: str
+    path: str
+    unknown: bool  # the label is no gesture of the model: right means rejected
+    hands: int = 0
+    right: int = 0
+    answers: Counter = field(default_factory=Counter)  # top answer ("none" when rejected)
+    skipped: int = 0  # messages that break the contract
+    top_p: list[float] = field(default_factory=list)
+
+    @property
+    def share(self) -> float:
+        """The share of the take's hands answered right (NaN for an empty take)."""
+        return self.right / self.hands if self.hands else float("nan")
+
+
+def parse_take(spec: str) -> tuple[str, Path]:
+    """Returns (label, path) of a ``LABEL=FILE`` argument.
+
+    Raises:
+        ValueError: no ``=``, an empty label or file name.
+    """
+    label, sep, path = spec.partition("=")
+    if not sep or not label.strip() or not path.strip():
+        raise ValueError(f"a take is LABEL=FILE.mcap (e.g. five=five.mcap), got {spec!r}")
+    return label.strip(), Path(path.strip())
+
+
+def take_hands(path: Path) -> tuple[list[dict], int]:
+    """Returns the hands of a recording's valid ``hands/frame`` messages and the skipped count.
+
+    Raises:
+        RecordingError: the file is missing or no MCAP recording.
+    """
+    spec = keys.HANDS_FRAME.schema
+    hands, skipped = [], 0
+    for recorded in read_recording(path, FRAMES_KEY):
+        try:
+            message = wire.decode_checked(recorded.payload, spec, recorded.key)
+        except RejectedMessage:
+            skipped += 1
+            continue
+        hands += message["hands"]
+    return hands, skipped
+
+
+def score_take(classifier: StaticClassifier, label: str, path: Path) -> TakeScore:
+    """Scores every hand of a take (see the module docstring for what counts as right)."""
+    hands, skipped = take_hands(path)
+    unknown = label == NONE or label not in classifier.names
+    score = TakeScore(label, str(path), unknown, skipped=skipped)
+    if not hands:
+        return score
+    probs = classifier.classify_hands(hands)
+    finite = np.isfinite(probs).all(1)
+    score.skipped += int((~finite).sum())
+    probs = probs[finite]
+    top = probs.argmax(1)
+    names = np.array(classifier.names)[top]
+    top_p = probs.max(1)
+    answers = np.where((names == NONE) | (top_p < REJECT_BELOW), NONE, names)
+    score.hands = len(probs)
+    score.right = int((answers == NONE).sum() if unknown else (answers == label).sum())
+    score.answers = Counter(answers.tolist())
+    score.top_p = top_p.tolist()
+    return score
+
+
+def score_takes(classifier: StaticClassifier, specs: list[str]) -> list[TakeScore]:
+    """Scores each ``LABEL=FILE`` take.
+
+    Raises:
+        ValueError: a malformed take argument.
+        RecordingError: a file that cannot be read.
+    """
+    takes = [parse_take(s) for s in specs]
+    for _, path in takes:
+        if not path.is_file():
+            raise RecordingError(f"{path}: no such file")
+    return [score_take(classifier, label, path) for label, path in takes]
+
+
+def summary(scores: list[TakeScore]) -> dict:
+    """Frame accuracy over the known gestures' takes and rejection over the unknown ones."""
+    def pooled(items):
+        n = sum(s.hands for s in items)
+        return sum(s.right for s in items) / n if n else None
+
+    return {"known": pooled([s for s in scores if not s.unknown]),
+            "unknown_rejected": pooled([s for s in scores if s.unknown]),
+            "hands": sum(s.hands for s in scores), "skipped": sum(s.skipped for s in scores)}
+
+
+def print_scores(scores: list[TakeScore], model_id: str) -> None:
+    """Prints one line per take and the pooled figures."""
+    print(f"recorded takes, model {model_id} (right: the take's gesture with p ≥ {REJECT_BELOW}"
+          f"; for a pose that is no gesture, rejected):")
+    for s in scores:
+        what = "unknown pose, rejected" if s.unknown else "right"
+        answers = ", ".join(f"{name} {count}" for name, count in s.answers.most_common(4))
+        median = f"; median top p {np.median(s.top_p):.2f}" if s.top_p else ""
+        skipped = f"; {s.skipped} skipped (broke the contract)" if s.skipped else ""
+        print(f"  {s.label:10} {s.path}: {s.hands} hands, {what} {s.share:.1%} "
+              f"(answers: {answers or 'none'}{median}){skipped}")
+    fig = summary(scores)
+    for key, text in (("known", "known gestures, frames right"),
+                      ("unknown_rejected", "unknown poses, frames rejected")):
+        if fig[key] is not None:
+            print(f"  {text}: {fig[key]:.1%}")

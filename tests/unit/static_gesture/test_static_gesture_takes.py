@@ -1,0 +1,101 @@
+"""Scoring recorded takes (`takes.py`, `cbgo bench static --takes`): real MCAP recordings of
+simulated hands, the shipped model."""
+
+import argparse
+import json
+
+import numpy as np
+import pytest
+
+from cbgo import keys, wire
+from cbgo.errors import RecordingError
+from cbgo.hands.model import HandPose, HandShape, build_hand
+from cbgo.hands.poses import gesture_mean, gesture_pose
+from cbgo.recording import Recorder
+from cbgo.services.static_gesture import bench, takes
+from cbgo.services.static_gesture.classifier import StaticClassifier, default_model_path
+
+T0 = 1_700_000_000_000_000_000
+
+
+def half_open(rng):
+    """A hand halfway between five and grab: no gesture of the vocabulary."""
+    del rng
+    return HandPose.from_vector(0.5 * (gesture_mean("five").to_vector()
+                                       + gesture_mean("grab").to_vector()))
+
+
+def record_take(path, gesture, frames=12, seed=0, bad=0, prefix="cbgo"):
+    """Records `frames` hands/frame messages of one simulated right hand holding `gesture`."""
+    rng = np.random.default_rng(seed)
+    shape = HandShape.sample(rng, side="right")
+    pose = half_open if gesture == "half-open" else (lambda r: gesture_pose(gesture, r))
+    with Recorder(path) as rec:
+        for i in range(frames):
+            hand = build_hand(shape, pose(rng), np.array([0.0, 200.0, 0.0]))
+            hand["id"] = 7
+            ns = T0 + i * 10_000_000
+            msg = keys.HANDS_FRAME.message(ts=ns / 1e9, seq=i, source="simulated", device="sim",
+                                           hands=[hand])
+            rec.write(f"{prefix}/hands/frame", wire.encode(msg), ns)
+        for i in range(bad):  # breaks the contract: a hand without fingers
+            msg = keys.HANDS_FRAME.message(ts=T0 / 1e9, seq=100 + i, hands=[{"id": 1}])
+            rec.write(f"{prefix}/hands/frame", wire.encode(msg), T0 + (100 + i) * 10_000_000)
+        rec.write(f"{prefix}/gaze", b"\x80", T0)  # another key: not read
+    return path
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    return StaticClassifier.load(default_model_path(), samples=8)
+
+
+def test_a_take_of_a_gesture_counts_the_frames_answered_with_it(tmp_path, shipped):
+    five = record_take(tmp_path / "five.mcap", "five", bad=2)
+    right, = takes.score_takes(shipped, [f"five={five}"])
+    assert (right.hands, right.skipped, right.unknown) == (12, 2, False)
+    assert right.share >= 0.9 and right.answers.most_common(1)[0][0] == "five"
+    # the same frames named as another gesture are wrong, and as no gesture, not rejected
+    wrong, = takes.score_takes(shipped, [f"grab={five}"])
+    assert wrong.share <= 0.1
+    unknown, = takes.score_takes(shipped, [f"horns={five}"])
+    assert unknown.unknown and unknown.share <= 0.1
+
+
+def test_a_take_of_a_pose_outside_the_vocabulary_is_right_when_rejected(tmp_path, shipped):
+    scores = takes.score_takes(shipped, [
+        f"none={record_take(tmp_path / 'half.mcap', 'half-open', seed=3)}",
+        f"grab={record_take(tmp_path / 'grab.mcap', 'grab', seed=4, prefix='lab/cbgo')}"])
+    assert [s.unknown for s in scores] == [True, False]
+    assert scores[0].share >= 0.9 and scores[0].answers.most_common(1)[0][0] == "none"
+    assert scores[1].hands == 12  # a recording under another prefix is read as well
+    fig = takes.summary(scores)
+    assert fig["hands"] == 24 and fig["known"] == scores[1].share
+    assert fig["unknown_rejected"] == scores[0].share
+
+
+@pytest.mark.parametrize("spec", ["five.mcap", "=x.mcap", "five=", ""])
+def test_a_malformed_take_is_named(spec):
+    with pytest.raises(ValueError, match="LABEL=FILE"):
+        takes.parse_take(spec)
+
+
+def test_the_bench_scores_takes_and_says_what_is_wrong(tmp_path, capsys):
+    five = record_take(tmp_path / "five.mcap", "five")
+    parser = argparse.ArgumentParser()
+    bench.add_arguments(parser)
+    out = tmp_path / "fig.json"
+    assert bench.run(parser.parse_args(["--takes", f"five={five}", "--json", str(out)])) == 0
+    printed = capsys.readouterr().out
+    assert "five" in printed and "known gestures, frames right" in printed
+    fig = json.loads(out.read_text())
+    assert fig["takes"]["per_take"][0]["hands"] == 12 and fig["takes"]["known"] >= 0.9
+    assert bench.run(parser.parse_args(["--takes", f"five={tmp_path / 'no.mcap'}"])) == 2
+    assert "no such file" in capsys.readouterr().out
+    (tmp_path / "junk.mcap").write_bytes(b"not an mcap")
+    assert bench.run(parser.parse_args(["--takes", f"five={tmp_path / 'junk.mcap'}"])) == 2
+
+
+def test_a_missing_file_is_refused_before_scoring(tmp_path, shipped):
+    with pytest.raises(RecordingError, match="no such file"):
+        takes.score_takes(shipped, [f"five={tmp_path / 'absent.mcap'}"])
