@@ -60,6 +60,9 @@ from cbgo.wire import NO_GESTURE
 
 KIND = "static-gesture"
 NONE = NO_GESTURE  # the no-gesture class of the wire vocabulary: relaxed and transition poses
+REJECT_BELOW = 0.5
+"""A frame whose top probability is below this is no gesture, as if answered ``none`` (the
+episode service's reading: its threshold, 0.6, is higher still)."""
 MODEL_BASENAME = "static-gesture"
 DEFAULT_SAMPLES = 32
 

@@ -35,11 +35,10 @@ import numpy as np
 from cbgo.hands.data import load_real_features
 from cbgo.hands.model import rotation
 from cbgo.services.static_gesture import mmhgr, train
-from cbgo.services.static_gesture.classifier import NONE
+from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW
 from cbgo.wire import STATIC_GESTURES
 
 POSE_HALVES = (("hang", "down"), ("C", "L", "heavy"))
-REJECT_BELOW = 0.5
 CONFIDENCE_BINS = (0.0, 0.25, 0.5, 0.75, 0.9, 1.0001)
 TURNS = {"pitch -30°": ("x", -30.0), "pitch +30°": ("x", 30.0), "pitch +60°": ("x", 60.0),
          "fingers up (pitch +90°)": ("x", 90.0), "roll +90°": ("z", 90.0),

@@ -34,9 +34,8 @@ import numpy as np
 from cbgo import keys, wire
 from cbgo.errors import RecordingError, RejectedMessage
 from cbgo.recording import read_recording
-from cbgo.services.static_gesture.classifier import NONE, StaticClassifier
+from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW, StaticClassifier
 
-REJECT_BELOW = 0.5  # a frame whose top probability is below this is rejected (no gesture)
 FRAMES_KEY = "**/" + keys.HANDS_FRAME.suffix
 
 

@@ -44,6 +44,7 @@ import numpy as np
 import yaml
 
 from cbgo.hands import features as F
+from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW
 from cbgo.wire import BONE_TYPES, FINGER_TYPES
 
 POSES_DIR = Path(__file__).with_name("ultraleap_poses")
@@ -51,7 +52,6 @@ POSES = {"fist": "grab", "open_palm": "five", "point": "point", "thumbs_up": "th
          "thumbs_extended": "thumbsup", "v": "two", "ok": "pinch", "horns": "none"}
 FIELD_CENTRE_MM = (0.0, 200.0, 0.0)
 TRAINING_ORIENTATIONS = ("five", "grab", "point", "thumbsup")
-REJECT_BELOW = 0.5  # an unknown pose answered with a top probability below this is rejected
 
 
 def _lower_keys(value):
@@ -150,8 +150,8 @@ def turned_like(hand: dict, reference: dict) -> dict:
 
 def _right(truth: str, names: list[str], probs: np.ndarray) -> bool:
     top = int(np.argmax(probs))
-    if truth == "none":
-        return names[top] == "none" or float(probs[top]) < REJECT_BELOW
+    if truth == NONE:
+        return names[top] == NONE or float(probs[top]) < REJECT_BELOW
     return names[top] == truth
 
 
