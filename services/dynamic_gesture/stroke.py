@@ -653,19 +653,38 @@ class _Gesture:
 # A stroke more than 102° from the one before reverses it: real returns come back on a curve
 # (`ReturnFilter`'s choice of -0.2, and the realism bench's return and preparation ratios).
 REVERSE_COS_MAX = -0.2
+ROLL_BACK = 2.0  # a turn after a move is that move's roll coming back up to this many times it
 
 
 def reverses(delta: np.ndarray, previous: np.ndarray, cos_max: float = REVERSE_COS_MAX) -> bool:
-    """Whether displacement `delta` points back against `previous`.
+    """Whether displacement `delta` (``[x, y, z, k·roll]``) points back against `previous`.
 
-    With the roll included, or in space alone when both moved in space (a swipe's palm may
-    roll one way and not back).
+    In space alone when both moved in space (a swipe's palm may roll one way and not back),
+    or with the roll included when the two are moves of one kind: both mostly a move, or both
+    mostly a turn (`_turns`). Across kinds, a return retraces what the gesture did: a turn
+    after a move is that move's roll coming back only when it turns no more than `ROLL_BACK`
+    times as far (a swipe that rolled the palm 20°, then a rotate of 110° the other way, is a
+    rotate); a move after a turn moves where the turn did not, so it returns nothing (a swipe
+    made soon after a rotate whose palm rolls back is a swipe).
     """
     def cos(a: np.ndarray, b: np.ndarray) -> float:
         return float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9)
 
     spatial = min(np.linalg.norm(delta[:3]), np.linalg.norm(previous[:3])) >= REVERSE_MIN_MM
-    return cos(delta, previous) < cos_max or (spatial and cos(delta[:3], previous[:3]) < cos_max)
+    if spatial and cos(delta[:3], previous[:3]) < cos_max:
+        return True
+    if _turns(delta) == _turns(previous):
+        same_kind = True
+    elif _turns(delta):
+        same_kind = abs(float(delta[3])) <= ROLL_BACK * abs(float(previous[3]))
+    else:
+        same_kind = False
+    return same_kind and cos(delta, previous) < cos_max
+
+
+def _turns(delta: np.ndarray) -> bool:
+    """Whether a displacement is mostly a turn: its k·roll beyond its distance in space."""
+    return len(delta) > 3 and abs(float(delta[3])) > float(np.linalg.norm(delta[:3]))
 
 
 class ReturnFilter:

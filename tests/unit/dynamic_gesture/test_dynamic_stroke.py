@@ -252,6 +252,35 @@ def test_a_move_back_much_farther_than_a_sure_gesture_is_reported_one_as_far_is_
     assert [w.stroke for w in kept if w.final] == [1]
 
 
+@pytest.mark.parametrize(("delta", "previous", "back"), [
+    ((0, -70, 0, -15), (0, 80, 0, 20), True),      # a swipe's return, its roll coming back too
+    ((0, 0, 0, 30), (0, 80, 0, -20), True),        # the swipe's roll alone coming back
+    ((-3, -2, -3, -99), (0, 78, 0, 19), False),    # a rotate, five times the swipe's roll
+    ((3, 2, 0, 85), (1, -4, 2, -85), True),        # a rotate's roll coming back
+    ((71, -2, 0, 35), (-1, 4, -2, -85), False),    # a swipe after a rotate moves anew
+    ((-60, 0, 0), (80, 0, 0), True),               # in space alone (no roll given)
+])
+def test_a_return_retraces_what_the_gesture_did(delta, previous, back):
+    assert stroke.reverses(np.array(delta, float), np.array(previous, float)) is back
+
+
+def test_a_rotate_soon_after_a_swipe_whose_palm_rolled_the_other_way_is_reported(synth):
+    # The swipe up rolls the palm 30° as it goes; 0.5 s later the palm turns 110° back: more
+    # than the swipe's roll could return, so it is a rotate, not the swipe's return (with the
+    # roll counted in one vector with the move, the two pointed 105° apart).
+    traj = synth.trajectory([REST, ("moveroll", 0.35, (0, 100, 0), math.radians(30)),
+                             ("hold", 0.5), ("roll", 0.5, math.radians(-110)), ("hold", 0.5)])
+    windows = synth.feed(Segmenter(), traj)
+    assert len(finals(windows)) == 2
+    kept = reported_windows(windows, classify=lambda w: True)
+    assert [w.stroke for w in kept if w.final] == [1, 2]
+    # rolled back only as far as the swipe rolled, it is the swipe's return
+    traj = synth.trajectory([REST, ("moveroll", 0.45, (0, 160, 0), math.radians(60)),
+                             ("hold", 0.5), ("roll", 0.5, math.radians(-60)), ("hold", 0.5)])
+    kept = reported_windows(synth.feed(Segmenter(), traj), classify=lambda w: True)
+    assert [w.stroke for w in kept if w.final] == [1]
+
+
 def test_a_stroke_cut_short_by_the_hand_leaving_after_a_gesture_is_its_return(synth):
     segmenter = Segmenter()
     traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.3), ("move", 0.2, (0, -160, 0))])
