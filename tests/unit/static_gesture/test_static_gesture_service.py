@@ -118,11 +118,12 @@ def test_the_shipped_model_metadata_is_complete():
     assert meta["names"] == [*STATIC_GESTURES, "none"]
     assert meta["feature_version"] == F.FEATURE_VERSION
     # the device-independent features, derived from the 57 (no wrist, metacarpal or thumb-
-    # metacarpal convention), yaw differences as sine and cosine
-    assert meta["transform"] == invariant.TRANSFORM_CONTINUOUS
-    assert meta["inputs"] == list(range(len(invariant.NAMES_CONTINUOUS)))
-    assert meta["feature_names"] == list(invariant.NAMES_CONTINUOUS)
-    assert len(meta["standardizer"]["mean"]) == len(meta["standardizer"]["std"]) == 60
+    # metacarpal convention): proximal bones, distances and the joints' angles in 3-D
+    names = invariant.names_of(invariant.TRANSFORM_BENDS)
+    assert meta["transform"] == invariant.TRANSFORM_BENDS
+    assert meta["inputs"] == list(range(len(names)))
+    assert meta["feature_names"] == list(names)
+    assert len(meta["standardizer"]["mean"]) == len(meta["standardizer"]["std"]) == 49
     assert meta["real_data_sha256"] == real_features_sha256()
     assert len(meta["data_hash"]) == 16 and meta["user_gestures"] == []
     per_source = meta["dataset"]["per_source"]
