@@ -437,7 +437,6 @@ def recipe_of(clf: StaticClassifier) -> train.TrainOptions:
     saved = {k: v for k, v in (clf.metadata.get("options") or {}).items() if k in known}
     if "features" not in saved:  # a model from before the device-independent features
         saved.update(features="raw", mmhgr=False, off_vocabulary=0)
-    saved.setdefault("curl_deg", 0.0)  # models from before the curl augmentation
     return train.TrainOptions(**saved)
 
 

@@ -339,13 +339,11 @@ SPLICE_OPEN, SPLICE_CLOSED = "five", "fist_moved"
 
 
 def palm_basis(frames: Frames) -> np.ndarray:
-    """Returns (N, 3, 3) rows: hand direction, palm normal (made orthogonal), their cross."""
+    """Returns (N, 3, 3) rows: each frame's hand direction, palm normal and their cross."""
     from cbgo.hands import features as F  # noqa: PLC0415 - keeps `convert` light
 
-    d = F.unit(np, frames.direction.astype(np.float64))
-    n = frames.normal.astype(np.float64)
-    n = F.unit(np, n - np.sum(n * d, -1, keepdims=True) * d)
-    return np.stack([d, n, np.cross(d, n)], 1)
+    return F.palm_basis(np, frames.direction.astype(np.float64),
+                        frames.normal.astype(np.float64))
 
 
 def splice_fingers(frames: Frames, patterns: np.ndarray, count: int,

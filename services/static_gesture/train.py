@@ -47,9 +47,7 @@ their 15 yaw differences as its sine and cosine (``invariant.continuous``: 60 in
 with the training mean/std. ``invariant-2`` keeps the yaw differences wrapped into (−π, π], where a
 curled finger's lands near either end; leave-one-person-out on the HGR set it scored 91.69 %
 balanced against 91.96 % and rejected 62.4 % of the held-out unknown poses against 65.9 %
-(services/static_gesture/ README.md). ``invariant-4`` keeps the proximal bones and distances and
-reads the other bones as angles in 3-D (``invariant.bends``): better on the HGR set's people and at
-every angle, worse where joint conventions shift (README). ``invariant-1`` (proximal bones against
+(services/static_gesture/README.md). ``invariant-1`` (proximal bones against
 the hand direction) is the default before; on the HGR set's five folds of people (``cbgo bench
 static --folds 5`` of a model trained with each) it scored 92.2 % balanced against 92.4 %, rejected
 58 % of the held-out unknown poses against 62 %, and 91.3 % against 91.9 % with the test hands
@@ -232,11 +230,11 @@ VOCABULARY_PATTERNS = ((0, 0, 0, 0), (1, 0, 0, 0), (1, 1, 0, 0), (1, 1, 1, 0), (
                        (0, 1, 1, 1))
 OFF_VOCABULARY = tuple(p for p in np.ndindex(2, 2, 2, 2) if p not in VOCABULARY_PATTERNS)
 THUMB_OUT_ONLY = ((1, 0, 0, 0),)
+"""Patterns outside the vocabulary only with the thumb out: the index alone with the thumb
+spread wide is an L, not ``point`` (whose thumb is tucked)."""
 SPLICE_PATTERNS = np.array([(thumb, *p) for p in OFF_VOCABULARY for thumb in (0, 1)], dtype=bool)
 """The HGR hands spliced from a person's fist and open hand (`mmhgr.splice_fingers`): the
 finger patterns no gesture uses, thumb in or out."""
-"""Patterns outside the vocabulary only with the thumb out: the index alone with the thumb
-spread wide is an L, not ``point`` (whose thumb is tucked)."""
 
 
 def simulate_off_vocabulary(count: int, rng: np.random.Generator) -> np.ndarray:

@@ -122,10 +122,8 @@ def load_poses(folder: Path = POSES_DIR) -> dict[str, list[dict]]:
 
 def palm_frame(hand: dict) -> np.ndarray:
     """Returns the rows direction, palm normal (made orthogonal) and their cross product."""
-    d = F.unit(np, np.asarray(hand["direction"], dtype=np.float64))
-    n = np.asarray(hand["palm_normal"], dtype=np.float64)
-    n = F.unit(np, n - d * float(n @ d))
-    return np.stack([d, n, np.cross(d, n)])
+    return F.palm_basis(np, np.asarray(hand["direction"], dtype=np.float64),
+                        np.asarray(hand["palm_normal"], dtype=np.float64))
 
 
 def turned_like(hand: dict, reference: dict) -> dict:

@@ -95,6 +95,16 @@ def unit(xp: Any, v: Any) -> Any:
     return v / xp.clip(norm, _EPS_MM, None)
 
 
+def palm_basis(xp: Any, direction: Any, normal: Any) -> Any:
+    """Returns (..., 3, 3) rows: hand direction, palm normal made orthogonal, their cross.
+
+    The hand's own frame, for numpy arrays (``xp.cross``).
+    """
+    d = unit(xp, direction)
+    n = unit(xp, normal - (normal * d).sum(-1, keepdims=True) * d)
+    return xp.stack([d, n, xp.cross(d, n)], -2)
+
+
 def features_from_geometry(xp: Any, palm: Any, wrist: Any, direction: Any, bone_dirs: Any,
                            tips: Any) -> Any:
     """Computes the features from stacked geometry; shared by numpy and the torch calibration.
