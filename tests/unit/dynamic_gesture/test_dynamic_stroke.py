@@ -53,6 +53,15 @@ def reported_windows(windows, classify):
     return [w for w, _ in reported(windows, ReturnFilter(SegmenterConfig().return_s), probs)]
 
 
+def test_a_running_stroke_is_reported_early_only_when_sure_and_always_at_its_end(synth):
+    windows = synth.feed(Segmenter(), synth.trajectory([REST, SWIPE_UP, ("hold", 0.5)]))
+    assert len(finals(windows)) == 1 and len(windows) > 1
+    unsure = stroke.PARTIAL_P - 0.05
+    assert [w.final for w in reported_windows(windows, lambda w: unsure)] == [True]
+    sure = reported_windows(windows, lambda w: stroke.PARTIAL_P)
+    assert len(sure) == len(windows)
+
+
 def test_the_slower_return_move_after_a_gesture_is_not_reported(synth):
     traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.4), ("move", 0.9, (0, -160, 0)),
                              ("hold", 0.5)])
