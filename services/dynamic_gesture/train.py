@@ -73,7 +73,10 @@ CALIB_SEED = 2000
 # users' strokes: above 0.15 the simulated users' small swipes go to "none", below it the
 # other gestures report more swipes for little gain.
 NONE_WEIGHT = 0.15
-RULES = ("all", "finals")  # how a trial is answered: by every reported window, or finals only
+RULES = ("all", "finals", "first")
+"""How a trial is answered: by every reported window, by the final windows only, or by the
+first reported gesture (what a consumer that acts at once sees)."""
+SUFFIXES = {"all": "", "finals": "_finals", "first": "_first"}  # of the figures' keys
 STREAMS_PER_PERSON = 2  # continuous streams of each held-out person (`realbench.person_streams`)
 
 
@@ -174,14 +177,18 @@ def trial_answers(classifier: Classifier, windows: list, return_s: float) -> dic
 
     Its most probable gesture among every reported window ("all"), and among the strokes'
     final windows only ("finals": what a consumer that reads one answer per stroke, ``final``
-    on the wire, sees); "nothing" when no such window has a gesture at p ≥ `stroke.GESTURE_P`.
+    on the wire, sees); the first reported gesture ("first": what a consumer that acts on the
+    first answer sees); "nothing" when no such window has a gesture at p ≥ `stroke.GESTURE_P`.
     """
     best = {rule: ("nothing", 0.0) for rule in RULES}
     for window, probs in reported(windows, ReturnFilter(return_s), classifier.classify):
         top = int(np.argmax(probs[:-1]))
+        if probs[top] < GESTURE_P:
+            continue
         for rule in RULES:
-            counts = window.final or rule == "all"
-            if counts and probs[top] >= GESTURE_P and probs[top] > best[rule][1]:
+            counts = window.final or rule != "finals"
+            surer = probs[top] > best[rule][1] if rule != "first" else best[rule][1] == 0.0
+            if counts and surer:
                 best[rule] = (classifier.names[top], float(probs[top]))
     return {rule: name for rule, (name, _) in best.items()}
 
@@ -236,7 +243,7 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     for rule in RULES:
         c = confusion[rule]
         recall = {n: float(c[i, i] / max(c[i].sum(), 1)) for i, n in enumerate(names[:4])}
-        suffix = "" if rule == "all" else "_finals"
+        suffix = SUFFIXES[rule]
         out.update({f"confusion{suffix}": c.tolist(), f"recall{suffix}": recall,
                     f"balanced_accuracy{suffix}": float(np.mean(list(recall.values()))),
                     f"other_reported{suffix}": other_false[rule],
@@ -292,7 +299,8 @@ def print_leave_people_out(block: dict) -> None:
     print(f"\nreal people, leave-people-out ({block['folds']} groups of the SHREC'17 train "
           f"split's {len(block['people'])} people), one recording = one trial:")
     for suffix, how in (("", "its most probable reported window"),
-                        ("_finals", "its most probable final window (one answer per stroke)")):
+                        ("_finals", "its most probable final window (one answer per stroke)"),
+                        ("_first", "its first reported gesture (a consumer that acts at once)")):
         if f"confusion{suffix}" not in block:
             continue
         print(f"\nanswered by {how}:")

@@ -175,6 +175,8 @@ def test_leave_people_out_scores_each_person_with_a_library_learned_without_them
     assert set(block["recall"]) == set(shrec.SWIPE_DIRECTIONS)
     finals = np.asarray(block["confusion_finals"])  # answered by final windows only
     assert finals.sum() == 4 and set(block["recall_finals"]) == set(shrec.SWIPE_DIRECTIONS)
+    first = np.asarray(block["confusion_first"])  # answered by the first reported gesture
+    assert first.sum() == 4 and set(block["recall_first"]) == set(shrec.SWIPE_DIRECTIONS)
     # each held-out person's one swipe, played as a stream STREAMS_PER_PERSON times
     assert block["streams"]["strokes"] == 4 * train.STREAMS_PER_PERSON
     # the same swipes mirrored into left hands score as the right hands they mirror
@@ -200,3 +202,36 @@ def test_the_live_score_counts_rotate_when_the_trials_hold_it():
     block = realbench.score(rows, "dynamic")
     assert block["recall"] == {"swipe_up": 1.0, "rotate": 0.0}
     assert block["balanced_accuracy"] == 0.5 and block["other_false"] == 1
+
+
+class _Answers:
+    """A classifier stub: each window's probabilities by its position in the stroke."""
+
+    names = ["swipe_up", "swipe_down", "none"]
+
+    def __init__(self, by_index):
+        self.by_index, self.calls = by_index, 0
+
+    def classify(self, window):
+        probs = self.by_index(self.calls, window)
+        self.calls += 1
+        return np.asarray(probs, dtype=float)
+
+
+def test_a_trial_is_answered_by_its_surest_window_its_surest_final_and_its_first_gesture(synth):
+    windows = synth.feed(Segmenter(), synth.trajectory(
+        [("hold", 0.5), ("move", 0.45, (0.0, 160.0, 0.0)), ("hold", 0.5)]))
+    assert len(windows) >= 3 and windows[-1].final
+
+    def probs(i, window):  # a sure early swipe_down, then swipe_up surer, final unsure
+        if window.final:
+            return [0.55, 0.0, 0.45]
+        return [0.0, 0.7, 0.3] if i == 0 else [0.95, 0.0, 0.05]
+
+    answers = train.trial_answers(_Answers(probs), windows, 1.5)
+    assert answers == {"all": "swipe_up", "finals": "swipe_up", "first": "swipe_down"}
+
+    def unsure(i, window):  # nothing reaches GESTURE_P: no rule reports a gesture
+        return [0.45, 0.0, 0.55]
+
+    assert set(train.trial_answers(_Answers(unsure), windows, 1.5).values()) == {"nothing"}
