@@ -266,7 +266,8 @@ def run_trials(player: _Player, trials: list[Trial], device: str, log=print) -> 
         reported = _reported(messages)
         dynamic = max(reported, key=lambda r: r[1])[0] if reported else NOTHING
         rows.append({"truth": trial.truth, "person": trial.person, "gesture": trial.gesture,
-                     "dynamic": dynamic, "summary": _summary_gesture(summary),
+                     "dynamic": dynamic, "first": reported[0][0] if reported else NOTHING,
+                     "summary": _summary_gesture(summary),
                      "reports": [r[0] for r in reported]})
         log(f"  [{i + 1}/{len(trials)}] {trial.gesture} (person {trial.person}): dynamic "
             f"{dynamic}, summary {rows[-1]['summary']}")
@@ -544,7 +545,7 @@ def play_live(trials: list[Trial], streams: list[tuple], device: str, where: str
 
 def report_live(result: dict, json_path: Path | None, log=print) -> int:
     """Scores and prints what `play_live` collected; writes it to `json_path` if given."""
-    for field in ("dynamic", "summary"):
+    for field in ("dynamic", "first", "summary"):
         result[field] = score(result["trials"], field)
         _print_score(field, result[field])
     total = stream_totals(result["streams"])
@@ -586,7 +587,9 @@ def simulated_trials(users: int, seed: int, ranges: simdata.StyleRanges) -> list
 
 
 def _print_score(field: str, block: dict) -> None:
-    where = "gestures/dynamic" if field == "dynamic" else "episode/summary g"
+    where = {"dynamic": "gestures/dynamic (its most probable message)",
+             "first": "gestures/dynamic, its first gesture (a consumer that acts at once)",
+             "summary": "episode/summary g"}[field]
     print(f"\n{where}: balanced accuracy over {', '.join(block['recall'])} "
           f"{block['balanced_accuracy']:.1%}")
     print(metrics.format_confusion(np.asarray(block["confusion"]), block["names"]))

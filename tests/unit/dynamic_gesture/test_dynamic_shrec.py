@@ -204,6 +204,13 @@ def test_the_live_score_counts_rotate_when_the_trials_hold_it():
     assert block["balanced_accuracy"] == 0.5 and block["other_false"] == 1
 
 
+def test_the_live_score_reads_the_field_asked_for():
+    rows = [{"truth": "swipe_up", "dynamic": "swipe_up", "first": "swipe_down"},
+            {"truth": "swipe_down", "dynamic": "swipe_down", "first": "swipe_down"}]
+    assert realbench.score(rows, "dynamic")["balanced_accuracy"] == 1.0
+    assert realbench.score(rows, "first")["recall"] == {"swipe_up": 0.0, "swipe_down": 1.0}
+
+
 class _Answers:
     """A classifier stub: each window's probabilities by its position in the stroke."""
 
