@@ -117,7 +117,8 @@ def summarise(parts: list[dict]) -> dict:
         ``{classes, recall, balanced_accuracy, accuracy, n, per_person, confusion, names,
         rejection: {pose: rate}, rejection_overall, rejection_n, rejection_seen: {pose: rate}
         (unknown poses other people showed in training), rejection_seen_overall,
-        by_confidence: [...], tracker_agrees: {share, balanced, balanced_otherwise}}``:
+        by_confidence: [...], tracker_agrees: {share, balanced, balanced_otherwise,
+        thumb_too_share, thumb_too_balanced}}``:
         the last, the frames whose tracker's finger flags show their pose
         (`mmhgr.Frames.tracker_agrees`) apart from the others.
     """
@@ -148,9 +149,12 @@ def summarise(parts: list[dict]) -> dict:
     rejection_seen = {str(q): float(rejected[seen & (pose == q)].mean())
                       for q in np.unique(pose[seen])}
     agrees = np.concatenate([p["frames"].tracker_agrees() for p in parts])
+    thumb = agrees & np.concatenate([p["frames"].thumb_agrees() for p in parts])
     tracker = {"share": float(agrees[known].mean()),
                "balanced": _balanced(correct, label, agrees, classes),
-               "balanced_otherwise": _balanced(correct, label, known & ~agrees, classes)}
+               "balanced_otherwise": _balanced(correct, label, known & ~agrees, classes),
+               "thumb_too_share": float(thumb[known].mean()),
+               "thumb_too_balanced": _balanced(correct, label, thumb, classes)}
     by_conf = []
     for lo, hi in zip(CONFIDENCE_BINS[:-1], CONFIDENCE_BINS[1:], strict=True):
         sel = known & (conf >= lo) & (conf < hi)
@@ -256,6 +260,10 @@ def print_figures(fig: dict) -> None:
               f"({t['share']:.1%} of them): balanced accuracy {t['balanced']:.2%}; the others, "
               f"where the reported skeleton shows other fingers: "
               + (f"{other:.2%}" if other is not None else "-"))
+        if t.get("thumb_too_balanced") is not None:
+            print(f"  and whose thumb flag shows the pose's thumb too, where the pose fixes it "
+                  f"(grab and four in, thumbs-up and five out; {t['thumb_too_share']:.1%} of "
+                  f"them): balanced accuracy {t['thumb_too_balanced']:.2%}")
     print("accuracy by tracking confidence: " + "; ".join(
         f"[{b['lo']:.2f}, {b['hi']:.2f}) {b['accuracy']:.1%} (n={b['n']})" if b["n"] else
         f"[{b['lo']:.2f}, {b['hi']:.2f}) - (n=0)" for b in fig["by_confidence"]))

@@ -68,6 +68,9 @@ POSE_FINGERS = {"fist_moved": (0, 0, 0, 0), "up": (0, 0, 0, 0), "index": (1, 0, 
                 "five": (1, 1, 1, 1), "ok": (0, 1, 1, 1)}
 """Which of index, middle, ring and pinky each gesture pose holds out (the thumb left aside:
 the tracker flags it extended in a quarter of the set's fists)."""
+POSE_THUMB = {"fist_moved": False, "up": True, "four": False, "five": True}
+"""Whether the gesture poses that fix the thumb hold it out: a grab's and a four's are in, a
+thumbs-up's and a five's out (the others may hold it either way)."""
 AMBIGUOUS = ("palm", "palm_m", "palm_u")
 ORIENTED_POSES = ("up", "down")
 """Poses that differ by orientation alone: the same fist with the thumb out, held palm up
@@ -172,6 +175,19 @@ class Frames:
         for pose, fingers in POSE_FINGERS.items():
             rows = self.pose == pose
             agrees[rows] = (self.extended[rows][:, 1:] == np.array(fingers, dtype=bool)).all(1)
+        return agrees
+
+    def thumb_agrees(self) -> np.ndarray:
+        """Returns per row whether the tracker's thumb flag shows its pose's thumb.
+
+        True where the pose does not fix the thumb (`POSE_THUMB`). Where it does and the flag
+        differs, the skeleton shows the other gesture of the pair (a four as a five, a grab as
+        a thumbs-up), whatever the person held.
+        """
+        agrees = np.ones(len(self), dtype=bool)
+        for pose, out in POSE_THUMB.items():
+            rows = self.pose == pose
+            agrees[rows] = self.extended[rows][:, 0] == out
         return agrees
 
 

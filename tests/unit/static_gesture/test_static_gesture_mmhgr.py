@@ -210,6 +210,7 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     # The test frames flag every finger extended: only five's show their pose.
     assert fig["tracker_agrees"]["share"] == pytest.approx(1 / 3)
     assert fig["tracker_agrees"]["balanced"] is None  # grab and thumbsup have no such frame
+    assert fig["tracker_agrees"]["thumb_too_share"] == pytest.approx(1 / 3)  # five's thumb out
     crossval.print_figures(fig)
 
 
@@ -230,6 +231,23 @@ def test_a_frame_agrees_with_its_pose_when_the_trackers_finger_flags_show_it(
     (folder / "frame_1.xml").write_text(frame_xml(_hand("five", "right", 1), extended=flags))
     mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     assert mmhgr.load(tmp_path / "c.npz").tracker_agrees().tolist() == [agrees]
+
+
+@pytest.mark.parametrize(("pose", "thumb", "agrees"), [
+    ("five", 1, True), ("five", 0, False),        # a five with the thumb in shows a four
+    ("four", 0, True), ("four", 1, False),
+    ("fist_moved", 0, True), ("fist_moved", 1, False),  # a grab with the thumb out: thumbs-up
+    ("up", 1, True), ("up", 0, False),
+    ("three", 0, True), ("three", 1, True),       # either way
+])
+def test_a_frame_agrees_with_its_poses_thumb_when_the_pose_fixes_it(tmp_path, pose, thumb,
+                                                                      agrees):
+    folder = tmp_path / "src" / "user_01" / "train_pose" / pose
+    folder.mkdir(parents=True)
+    flags = (thumb, 1, 1, 1, 1)
+    (folder / "frame_1.xml").write_text(frame_xml(_hand("five", "right", 1), extended=flags))
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    assert mmhgr.load(tmp_path / "c.npz").thumb_agrees().tolist() == [agrees]
 
 
 def test_wider_turns_spare_the_thumb_poses_told_apart_by_orientation(tmp_path):
