@@ -78,8 +78,8 @@ MIGHT_P = 0.25
 # A running stroke's window is reported only when its top gesture is this probable: an early
 # answer must be a sure one. On the SHREC'17 train split's held-out people, weaker early windows
 # were most of the streams' false triggers (the first windows of a preparation that moves
-# against the swipe, 14 → 8 in 9.9 min) and misread strokes (22 → 10), for 1 swipe of 194
-# recalled and 0.5 points by any window (`cbgo train dynamic --real DIR --folds 4`).
+# against the swipe; 14 → 8 in 9.9 min) and misread strokes (22 → 10), at the cost of 1 of
+# 194 swipes recalled and 0.5 points by any window (`cbgo train dynamic --real DIR --folds 4`).
 PARTIAL_P = 0.65
 RATE_HZ = 20.0  # the paper's resampling rate of the palm trajectory
 DT = 1.0 / RATE_HZ
