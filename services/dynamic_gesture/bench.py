@@ -39,6 +39,7 @@ Examples::
     cbgo bench dynamic --real ~/.cache/cbgo/shrec17/datasetShrec
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --per-class 0   # real Leap recordings
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --mirror   # the same as left hands
+    cbgo bench dynamic --real ~/.cache/cbgo/guinevere --stream-returns   # streams with returns
     cbgo bench dynamic --real ~/.cache/cbgo/leapmotion-left --per-class 0   # real left hands
     cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec
     cbgo bench dynamic --live-sim 16           # simulated users through live services
@@ -108,6 +109,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                            "makes it (x negated, sides swapped, swipe_left scored as "
                            "swipe_right): the left-hand path on real motion, both sets being "
                            "right hands")
+    real.add_argument("--stream-returns", action="store_true",
+                      help="with --real on LeapJS recordings: follow each swipe of a stream "
+                           "with a return move (0.95 of its length, 0.92 of its speed: the "
+                           "SHREC'17 train split's medians), as real people make one and the "
+                           "recordings stop before it; without it, a swipe that reverses the "
+                           "one before comes about 1 s after it, the hardest case")
     real.add_argument("--realism", type=Path, metavar="DIR", default=None,
                       help="instead: compare the simulated users' swipe habits with the real "
                            "train split's in this datasetShrec folder")
@@ -280,7 +287,7 @@ def run(args: argparse.Namespace) -> int:
     """Runs the three parts and prints their figures (or the real-data bench)."""
     if args.real is not None:
         return realbench.run_real(args.real, args.split, args.per_class, args.streams,
-                                  args.seed, args.json, args.mirror)
+                                  args.seed, args.json, args.mirror, args.stream_returns)
     if args.live_sim > 0:
         trials = realbench.simulated_trials(args.live_sim, args.seed,
                                             simdata.RANGES[args.ranges])

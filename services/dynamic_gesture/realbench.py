@@ -78,6 +78,13 @@ OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture 
 NOTHING = "nothing"
 MOVE_S, MOVE_MM_S, HOLD_S, LEAVE_S = 0.6, 100.0, 0.4, 0.6
 TURN_DEG_S = 45.0  # how fast the hand turns between two recordings of a stream (a slow turn)
+RETURN_LENGTH, RETURN_SPEED = 0.95, 0.92
+"""With ``returns``, a LeapJS stream's swipe is followed by a return move: back along the swipe
+this share of its length, this share of its speed (80th-percentile palm speed): the medians of
+the SHREC'17 train split's people (`cbgo bench dynamic --realism DIR`)."""
+_MIN_JERK_S = np.linspace(0.0, 1.0, 201)
+MIN_JERK_P80 = float(np.percentile(30 * _MIN_JERK_S**2 * (1 - _MIN_JERK_S)**2, 80))
+"""A minimum-jerk move's 80th-percentile speed over its mean speed."""
 STREAM_COUNTS = ("strokes", "recalled", "false_triggers", "other_gesture_triggers", "misread",
                  "other_minutes")
 
@@ -333,32 +340,70 @@ def junction_s(a: dict, b: dict) -> float:
     return max(MOVE_S, distance / MOVE_MM_S, turn / TURN_DEG_S)
 
 
-def trials_stream(trials: list[Trial], rate_hz: float = 60.0
+def _min_jerk(a: dict, b: dict, seconds: float, t: float, rate_hz: float) -> list[tuple]:
+    """Returns the frames of a minimum-jerk move from hand `a` to hand `b` after time `t`."""
+    n = max(1, int(seconds * rate_hz))
+    return [(t + i / rate_hz, [blend_hands(a, b, (i / n)**3 * (10 - 15 * i / n
+                                                               + 6 * (i / n)**2))])
+            for i in range(1, n + 1)]
+
+
+def shifted_hand(hand: dict, offset) -> dict:
+    """Returns a hand moved by `offset` (mm): palm, wrist and every joint."""
+    def moved(p) -> list[float]:
+        return (np.asarray(p, dtype=float) + offset).tolist()
+
+    fingers = [{"type": f["type"], "bones": [
+        {**b, "prev_joint": moved(b["prev_joint"]), "next_joint": moved(b["next_joint"])}
+        for b in f["bones"]]} for f in hand["fingers"]]
+    return {**hand, "palm_position": moved(hand["palm_position"]),
+            "wrist_position": moved(hand["wrist_position"]), "fingers": fingers}
+
+
+def return_move(hands: list[tuple[float, dict]]) -> tuple[dict, float]:
+    """Returns where a swipe recording's return move ends, and how long it takes.
+
+    Back along the recording's displacement `RETURN_LENGTH` of its length, with an
+    80th-percentile speed `RETURN_SPEED` of the recording's (minimum jerk).
+    """
+    palms = np.array([h["palm_position"] for _, h in hands], dtype=float)
+    times = np.array([tt for tt, _ in hands], dtype=float)
+    speeds = np.linalg.norm(np.diff(palms, axis=0), axis=1) / np.maximum(np.diff(times), 1e-3)
+    offset = -RETURN_LENGTH * (palms[-1] - palms[0])
+    speed = RETURN_SPEED * float(np.percentile(speeds, 80)) if len(speeds) else 0.0
+    seconds = MIN_JERK_P80 * float(np.linalg.norm(offset)) / max(speed, 1e-3)
+    return shifted_hand(hands[-1][1], offset), max(MOVE_S / 2, seconds)
+
+
+def trials_stream(trials: list[Trial], rate_hz: float = 60.0, returns: bool = False
                   ) -> tuple[list[tuple], list[tuple]]:
     """Returns recordings played back to back as one stream: frames and (name, t0, t1) spans.
 
     Each recording's most seen hand, one tracking id for all: between two recordings the hand
     moves (`blend_hands`, minimum jerk) from where one ended to where the next begins, at
     `MOVE_MM_S` on average and turning at most `TURN_DEG_S`, at least `MOVE_S`, then holds
-    still for `HOLD_S`: it never leaves the field. A span's name is the trial's truth.
+    still for `HOLD_S`: it never leaves the field. A span's name is the trial's truth. With
+    ``returns``, each swipe is followed by a return move (`return_move`), as real people make
+    one and LeapJS recordings stop before it; the return is outside every span.
     """
     frames, spans, t = [], [], 0.0
     for trial in trials:
         hands = _main_hand(trial.frames())
         if frames:
             a, b = frames[-1][1][0], hands[0][1]
-            n = int(junction_s(a, b) * rate_hz)
-            for i in range(1, n + 1):
-                s = i / n
-                frames.append((t + i / rate_hz, [blend_hands(a, b, s**3 * (10 - 15 * s
-                                                                             + 6 * s**2))]))
+            frames += _min_jerk(a, b, junction_s(a, b), t, rate_hz)
             hold = int(HOLD_S * rate_hz)
-            frames += [(t + (n + i) / rate_hz, [b]) for i in range(1, hold + 1)]
-            t += (n + hold + 1) / rate_hz
+            t = frames[-1][0]
+            frames += [(t + i / rate_hz, [b]) for i in range(1, hold + 1)]
+            t = frames[-1][0] + 1.0 / rate_hz
         t_first = hands[0][0]
         frames += [(t + tt - t_first, [hand]) for tt, hand in hands]
         spans.append((trial.truth, t, frames[-1][0]))
         t = frames[-1][0] + 1.0 / rate_hz
+        if returns and trial.truth != "none" and len(hands) > 1:
+            back, seconds = return_move(hands)
+            frames += _min_jerk(frames[-1][1][0], back, seconds, frames[-1][0], rate_hz)
+            t = frames[-1][0] + 1.0 / rate_hz
     return [(tt, [{**h, "id": 1} for h in hs]) for tt, hs in frames], spans
 
 
@@ -484,12 +529,14 @@ def real_trials(root: Path, split: str) -> tuple[str, list[Trial], list[shrec.Se
 
 
 def stream_sets(device: str, trials: list[Trial], sequences: list[shrec.Sequence],
-                streams: int, seed: int) -> list[tuple[list[tuple], list[tuple]]]:
+                streams: int, seed: int, returns: bool = False
+                ) -> list[tuple[list[tuple], list[tuple]]]:
     """Returns `streams` continuous streams, one person each, of 10 recordings in random order.
 
     SHREC'17: its swipes and other gestures (`stream_joints`). LeapJS: its swipes and the
     gestures that are no swipe (tap, pinch, thumbs), not the moves along one direction with
-    another hand shape or path (`leapjs.SWIPE_LIKE`), whose truth is neither.
+    another hand shape or path (`leapjs.SWIPE_LIKE`), whose truth is neither; with
+    ``returns``, each swipe followed by a return move (`trials_stream`).
     """
     rng = np.random.default_rng(seed)
     if device == "shrec17":
@@ -503,19 +550,24 @@ def stream_sets(device: str, trials: list[Trial], sequences: list[shrec.Sequence
         else:
             own = [t for t in trials if t.person == person
                    and not t.gesture.startswith(leapjs.SWIPE_LIKE)]
-            out.append(trials_stream([own[i] for i in rng.permutation(len(own))[:10]]))
+            out.append(trials_stream([own[i] for i in rng.permutation(len(own))[:10]],
+                                     returns=returns))
     return out
 
 
 def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
-             json_path: Path | None, mirror: bool = False, log=print) -> int:
-    """The whole real-data bench (see the module docstring); `mirror`: as left hands."""
+             json_path: Path | None, mirror: bool = False, returns: bool = False,
+             log=print) -> int:
+    """The whole real-data bench (see the module docstring).
+
+    `mirror`: as left hands; `returns`: LeapJS streams with a return move after each swipe.
+    """
     device, all_trials, sequences = real_trials(root, split)
     if device == "shrec17" and split == "test":
         log("note: the test split's people are reserved for acceptance checks; never tune on "
             "these figures")
     trials = pick_trials(all_trials, per_class, seed)
-    streams_played = stream_sets(device, all_trials, sequences, streams, seed + 1)
+    streams_played = stream_sets(device, all_trials, sequences, streams, seed + 1, returns)
     where = f"{device}'s {split} split" if device == "shrec17" else device
     if mirror:
         trials = [mirrored_trial(t) for t in trials]

@@ -133,6 +133,24 @@ def test_a_stream_plays_recordings_back_to_back_with_the_hand_never_leaving(data
         wire.validate(msg, wire.schema_for(keys.HANDS_FRAME.suffix))
 
 
+def test_with_returns_each_swipe_is_followed_by_a_move_back_outside_every_span(dataset):
+    trials = [realbench.leapjs_trial(r) for r in leapjs.read_set(dataset)]
+    swipe = next(t for t in trials if t.truth == "swipe_right")
+    plain, spans = realbench.trials_stream([swipe])
+    frames, with_return = realbench.trials_stream([swipe], returns=True)
+    assert with_return == spans and frames[:len(plain)] == plain
+    back = frames[len(plain):]
+    assert back and back[0][0] > spans[0][2]  # after the swipe's span
+    start, end = (np.asarray(h[0]["palm_position"]) for h in (plain[0][1], plain[-1][1]))
+    moved = np.asarray(back[-1][1][0]["palm_position"]) - end
+    assert moved == pytest.approx(-realbench.RETURN_LENGTH * (end - start), abs=1e-6)
+    steps = np.linalg.norm(np.diff([h[0]["palm_position"] for _, h in back], axis=0), axis=1)
+    assert steps.max() < 20.0  # a move, not a jump
+    none_trial = next(t for t in trials if t.truth == "none")
+    assert realbench.trials_stream([none_trial], returns=True)[0] == \
+        realbench.trials_stream([none_trial])[0]  # no return after what is no swipe
+
+
 def test_a_blended_hand_turns_with_unit_vectors_half_way():
     a, pa = leapjs_hand([0.0, 200.0, 0.0])
     b, pb = leapjs_hand([100.0, 200.0, 0.0])
