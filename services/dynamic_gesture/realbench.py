@@ -58,6 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, metrics, wire
+from cbgo.hands.features import palm_basis
 from cbgo.hands.model import mirrored_hand
 from cbgo.services.dynamic_gesture import leapjs, shrec, simdata
 from cbgo.services.dynamic_gesture.classifier import MIRROR, path_of
@@ -297,25 +298,53 @@ def _unit(v) -> list[float]:
     return (v / max(float(np.linalg.norm(v)), 1e-9)).tolist()
 
 
+def partial_rotation(rot: np.ndarray, s: float) -> np.ndarray:
+    """Returns the rotation a fraction `s` of the way along rotation matrix `rot` (same axis)."""
+    angle = math.acos(float(np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0)))
+    if angle < 1e-9:
+        return np.eye(3)
+    # The axis is the eigenvector of eigenvalue 1; its sign from the skew part (any sign at π).
+    axis = np.linalg.eigh((rot + rot.T) / 2.0)[1][:, -1]
+    skew = np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
+    axis = axis if float(axis @ skew) >= 0.0 else -axis
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                  [-axis[1], axis[0], 0.0]])
+    t = s * angle
+    return np.eye(3) + math.sin(t) * k + (1.0 - math.cos(t)) * (k @ k)
+
+
 def blend_hands(a: dict, b: dict, s: float) -> dict:
     """Returns hand `a` taken a fraction `s` of the way to hand `b`.
 
-    Positions and joints move in a straight line, the palm normal and direction turn
-    (normalised interpolation), grab and pinch change linearly; the id is `a`'s.
+    The palm moves in a straight line and the hand turns rigidly about it at an even rate
+    (the rotation from `a`'s palm frame to `b`'s, `partial_rotation`), while the joints change
+    linearly in the palm's frame: a hand turned over is turned, not squeezed through its palm
+    with its normal flipping in a frame or two (a fast roll, a rotate). Velocity, grab and
+    pinch change linearly; the id is `a`'s.
     """
     def lerp(x, y):
-        return (np.asarray(x, dtype=float) * (1 - s) + np.asarray(y, dtype=float) * s).tolist()
+        return np.asarray(x, dtype=float) * (1 - s) + np.asarray(y, dtype=float) * s
+
+    basis_a = palm_basis(np, np.asarray(a["direction"], float), np.asarray(a["palm_normal"], float))
+    basis_b = palm_basis(np, np.asarray(b["direction"], float), np.asarray(b["palm_normal"], float))
+    basis = (partial_rotation(basis_b.T @ basis_a, s) @ basis_a.T).T
+    palm_a, palm_b = np.asarray(a["palm_position"], float), np.asarray(b["palm_position"], float)
+    palm = lerp(palm_a, palm_b)
+
+    def point(pa, pb) -> list[float]:
+        local = lerp(basis_a @ (np.asarray(pa, float) - palm_a),
+                     basis_b @ (np.asarray(pb, float) - palm_b))
+        return (palm + basis.T @ local).tolist()
 
     fingers = [{"type": fa["type"], "bones": [
-        {**ba, "prev_joint": lerp(ba["prev_joint"], bb["prev_joint"]),
-         "next_joint": lerp(ba["next_joint"], bb["next_joint"])}
+        {**ba, "prev_joint": point(ba["prev_joint"], bb["prev_joint"]),
+         "next_joint": point(ba["next_joint"], bb["next_joint"])}
         for ba, bb in zip(fa["bones"], fb["bones"], strict=True)]}
         for fa, fb in zip(a["fingers"], b["fingers"], strict=True)]
-    return {**a, "palm_position": lerp(a["palm_position"], b["palm_position"]),
-            "wrist_position": lerp(a["wrist_position"], b["wrist_position"]),
-            "palm_velocity": lerp(a["palm_velocity"], b["palm_velocity"]),
-            "palm_normal": _unit(lerp(a["palm_normal"], b["palm_normal"])),
-            "direction": _unit(lerp(a["direction"], b["direction"])),
+    return {**a, "palm_position": palm.tolist(),
+            "wrist_position": point(a["wrist_position"], b["wrist_position"]),
+            "palm_velocity": lerp(a["palm_velocity"], b["palm_velocity"]).tolist(),
+            "palm_normal": _unit(basis[1]), "direction": _unit(basis[0]),
             "grab_strength": float(lerp(a["grab_strength"], b["grab_strength"])),
             "pinch_strength": float(lerp(a["pinch_strength"], b["pinch_strength"])),
             "fingers": fingers}

@@ -162,6 +162,31 @@ def test_a_blended_hand_turns_with_unit_vectors_half_way():
     assert np.allclose(mid["palm_normal"], np.array([1.0, -1.0, 0.0]) / np.sqrt(2))
 
 
+def test_a_hand_turned_over_between_recordings_turns_rigidly_at_an_even_rate():
+    a, pa = leapjs_hand([0.0, 200.0, 0.0])
+    ha = leapjs.to_hand(a, pa)
+    flip = np.diag([-1.0, -1.0, 1.0])  # half a turn about the forward axis: palm up
+
+    def flipped(p) -> list[float]:
+        return (flip @ np.subtract(p, [0, 200, 0]) + [0, 200, 0]).tolist()
+
+    palm_up = {**ha, "palm_normal": (flip @ ha["palm_normal"]).tolist(),
+               "direction": (flip @ ha["direction"]).tolist(),
+               "wrist_position": flipped(ha["wrist_position"]),
+               "fingers": [{"type": f["type"], "bones": [
+                   {**b, "prev_joint": flipped(b["prev_joint"]),
+                    "next_joint": flipped(b["next_joint"])} for b in f["bones"]]}
+                   for f in ha["fingers"]]}
+    tip = np.asarray(ha["fingers"][1]["bones"][3]["next_joint"]) - [0, 200, 0]
+    for s, turned_deg in ((0.25, 45.0), (0.5, 90.0), (0.75, 135.0)):
+        mid = realbench.blend_hands(ha, palm_up, s)
+        normal = np.asarray(mid["palm_normal"])
+        angle = np.degrees(np.arccos(np.clip(normal @ ha["palm_normal"], -1.0, 1.0)))
+        assert angle == pytest.approx(turned_deg, abs=1e-6)  # not a flip in the middle
+        mid_tip = np.asarray(mid["fingers"][1]["bones"][3]["next_joint"]) - [0, 200, 0]
+        assert np.linalg.norm(mid_tip) == pytest.approx(np.linalg.norm(tip))  # rigid
+
+
 def test_the_left_hand_swipes_of_leapmotion_all_become_a_set_of_left_hands(tmp_path):
     src = tmp_path / "leapmotion-all"
     for name in leapjs.LEFT_HAND_SWIPES:
