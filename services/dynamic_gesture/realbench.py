@@ -70,7 +70,7 @@ from cbgo.services.dynamic_gesture.stroke import (
     reported,
     reverses,
 )
-from cbgo.simuser.motion import CENTRE_MM
+from cbgo.simuser.motion import CENTRE_MM, min_jerk
 from cbgo.simuser.scenario import IDLE_MOTIONS, Episode, GestureStep, Scenario
 from cbgo.simuser.user import SimulatedUser
 from cbgo.wire import DYNAMIC_GESTURES
@@ -84,7 +84,7 @@ RETURN_LENGTH, RETURN_SPEED = 0.95, 0.92
 this share of its length, this share of its speed (80th-percentile palm speed): the medians of
 the SHREC'17 train split's people (`cbgo bench dynamic --realism DIR`)."""
 _MIN_JERK_S = np.linspace(0.0, 1.0, 201)
-MIN_JERK_P80 = float(np.percentile(30 * _MIN_JERK_S**2 * (1 - _MIN_JERK_S)**2, 80))
+MIN_JERK_P80 = float(np.percentile(np.gradient(min_jerk(_MIN_JERK_S), _MIN_JERK_S), 80))
 """A minimum-jerk move's 80th-percentile speed over its mean speed."""
 STREAM_COUNTS = ("strokes", "recalled", "false_triggers", "other_gesture_triggers", "misread",
                  "other_minutes")
@@ -173,8 +173,7 @@ def stream_joints(sequences: list[shrec.Sequence]) -> tuple[np.ndarray, list[tup
         if parts:
             a, b = shrec.to_hands(np.stack([parts[-1][-1], joints[0]]))
             n = int(junction_s(a, b) * shrec.RATE_HZ)
-            s = np.linspace(0, 1, n)[:, None, None]
-            s = s**3 * (10 - 15 * s + 6 * s**2)
+            s = min_jerk(np.linspace(0, 1, n))[:, None, None]
             parts.append(parts[-1][-1] + s * (joints[0] - parts[-1][-1]))
             parts.append(np.repeat(joints[:1], int(HOLD_S * shrec.RATE_HZ), axis=0))
             t += (len(parts[-1]) + len(parts[-2])) / shrec.RATE_HZ
@@ -372,8 +371,7 @@ def junction_s(a: dict, b: dict) -> float:
 def _min_jerk(a: dict, b: dict, seconds: float, t: float, rate_hz: float) -> list[tuple]:
     """Returns the frames of a minimum-jerk move from hand `a` to hand `b` after time `t`."""
     n = max(1, int(seconds * rate_hz))
-    return [(t + i / rate_hz, [blend_hands(a, b, (i / n)**3 * (10 - 15 * i / n
-                                                               + 6 * (i / n)**2))])
+    return [(t + i / rate_hz, [blend_hands(a, b, float(min_jerk(i / n)))])
             for i in range(1, n + 1)]
 
 
