@@ -28,13 +28,22 @@ Conversion (every assumption written down):
   (a palm turned like a key) is left out of the swipe scores, as SHREC'17's rotations are;
   every other gesture is a hard "no gesture" case.
 
-**Left hands.** Both sets above are right hands. The same repository's history holds another
-LeapJS set, ``leapmotion-all`` (commit ``bec964af``, folder
+**Both hands: ``leapmotion-all``.** Both sets above are right hands. The same repository's
+history holds another LeapJS set, ``leapmotion-all`` (commit ``bec964af``, folder
 ``backend/src/datasets/dynamic/leapmotion-all``; no licence file either), in which 16 people
-each made a "previous" and a "next" gesture of their own choosing, some with the left hand.
-`LEFT_HAND_SWIPES` names its ten clean left-hand swipes (8 people) and the direction each
-palm goes; ``python -m cbgo.services.dynamic_gesture.leapjs left-hands SRC DST`` writes them
-as a set of the layout above (left-hand frames only), for ``cbgo bench dynamic --real DST``.
+each made a "previous" and a "next" gesture of their own choosing, with the right hand or the
+left. Its labels are commands, not directions, so `swipe_of` reads each recording's swipe from
+the palm path of the hand that moves most along x, by a rule written down once
+(`SWIPE_RULE`): one tracking id throughout, at least 0.3 s and 100 mm along x, at most 0.8 of
+that across (y or z), and it ends at least 0.4 of its x range from where it started (a hand
+that swipes and comes back all the way could have meant either move). 20 of its 32 recordings
+pass, 12 people: 10 left-hand and 10 right-hand swipes.
+
+- ``python -m cbgo.services.dynamic_gesture.leapjs swipes SRC DST`` writes them as a set of
+  the layout above, each recording whole (every hand it holds, as a sensor reports them), for
+  ``cbgo bench dynamic --real DST``;
+- ``... left-hands SRC DST`` writes only the left-hand ones, left-hand frames only: real left
+  hands alone.
 """
 
 from __future__ import annotations
@@ -44,21 +53,22 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from cbgo.wire import BONE_TYPES, FINGER_TYPES, SCHEMA_VERSION
 
-LEFT_HAND_SWIPES = {
-    "precedent/participant-12-12": "swipe_right", "precedent/participant-14-10": "swipe_right",
-    "precedent/participant-2-6": "swipe_right", "precedent/participant-7-9": "swipe_right",
-    "precedent/participant-5-1": "swipe_left", "suivant/participant-11-10": "swipe_left",
-    "suivant/participant-12-14": "swipe_left", "suivant/participant-13-1": "swipe_left",
-    "suivant/participant-19-8": "swipe_left", "suivant/participant-7-18": "swipe_left"}
-"""The ``leapmotion-all`` recordings whose left hand swipes, and where its palm goes.
 
-Its own labels are commands ("precedent", "suivant": previous, next) whose gesture each person
-chose, so the direction is read from the left hand's palm path: from first to last frame it
-goes 187–438 mm along x, and its range along x (222–447 mm) is wider than along y or z (at
-most 0.8 of it). Left out: the left-hand recordings that go mostly along z, move under 100 mm,
-last under 0.3 s, or jump by 600 mm between two hand ids."""
+@dataclass(frozen=True)
+class SwipeRule:
+    """When a ``leapmotion-all`` recording is a swipe along x, and which (`swipe_of`)."""
+
+    min_s: float = 0.3  # the moving hand is seen this long at least
+    min_span_mm: float = 100.0  # its palm's range along x
+    across_max: float = 0.8  # its range along y and along z, at most this share of x's
+    away_min: float = 0.4  # first to last frame along x, at least this share of x's range
+
+
+SWIPE_RULE = SwipeRule()
 
 SWIPES = ("swipe_right", "swipe_left", "swipe_up", "swipe_down")
 NOT_SCORED = ("turn_clockwise", "turn_counter_clockwise")
@@ -163,47 +173,92 @@ def left_hand_only(recording: dict) -> dict:
     return {**recording, "data": frames}
 
 
-def arrange_left_hands(src: Path, dst: Path) -> int:
-    """Writes `LEFT_HAND_SWIPES` of a ``leapmotion-all`` folder as a set `read_set` reads.
+def swipe_of(recording: dict, rule: SwipeRule = SWIPE_RULE) -> tuple[str, str] | None:
+    """Returns (side, swipe_left or swipe_right) of a parsed LeapJS recording, or None.
 
-    ``dst/participant-P/swipe_X-T.json``, left-hand frames only. Returns how many it wrote.
+    The hand is the side whose palm ranges farthest along x; the swipe is where that palm
+    went from its first frame to its last, when the recording passes `rule`.
 
     Raises:
-        OSError: a recording of `LEFT_HAND_SWIPES` is not under `src`, or unreadable.
-        ValueError: a recording is not JSON.
+        KeyError, ValueError: a hand's field is missing or malformed.
     """
-    for name, gesture in LEFT_HAND_SWIPES.items():
-        stem = Path(name).name  # participant-P-T
-        person, _, take = stem.rpartition("-")
-        out = Path(dst) / person / f"{gesture}-{take}.json"
+    tracks: dict[str, list[tuple[float, int, list[float]]]] = {}
+    for frame in recording["data"]:
+        for hand in frame["hands"]:
+            tracks.setdefault(hand["type"], []).append(
+                (float(frame["timestamp"]) / 1e6, int(hand["id"]), _vec(hand["palmPosition"])))
+    if not tracks:
+        return None
+    side, track = max(tracks.items(), key=lambda kv: np.ptp([p[0] for _, _, p in kv[1]]))
+    times = [t for t, _, _ in track]
+    palms = np.array([p for _, _, p in track])
+    span = np.ptp(palms, axis=0)
+    away = float(palms[-1, 0] - palms[0, 0])
+    if (len({hand_id for _, hand_id, _ in track}) > 1 or times[-1] - times[0] < rule.min_s
+            or span[0] < rule.min_span_mm or max(span[1], span[2]) > rule.across_max * span[0]
+            or abs(away) < rule.away_min * span[0]):
+        return None
+    return side, "swipe_right" if away > 0 else "swipe_left"
+
+
+def arrange_swipes(src: Path, dst: Path, sides: tuple[str, ...] = ("left", "right")) -> int:
+    """Writes the swipes (`swipe_of`) of a ``leapmotion-all`` folder as a set `read_set` reads.
+
+    ``dst/participant-P/swipe_X-T.json``: a swipe of `sides` only; whole with both sides,
+    else the left hand's frames only. Returns how many it wrote.
+
+    Raises:
+        OSError: `src` holds no recording, or one is unreadable.
+        ValueError, KeyError: a recording is not LeapJS JSON.
+    """
+    paths = sorted(Path(src).glob("*/participant-*.json"))
+    if not paths:
+        raise FileNotFoundError(f"no participant-P-T.json recordings under {src}/<command>/: "
+                                "copy the leapmotion-all folder there")
+    written = 0
+    for path in paths:
+        recording = json.loads(path.read_text())
+        swipe = swipe_of(recording)
+        if swipe is None or swipe[0] not in sides:
+            continue
+        person, _, take = path.stem.rpartition("-")
+        out = Path(dst) / person / f"{swipe[1]}-{take}.json"
+        if out.exists():
+            raise ValueError(f"two recordings of {person} would both be {out.name}")
         out.parent.mkdir(parents=True, exist_ok=True)
-        recording = json.loads((Path(src) / f"{name}.json").read_text())
-        out.write_text(json.dumps(left_hand_only(recording)))
-    return len(LEFT_HAND_SWIPES)
+        whole = set(sides) == {"left", "right"}
+        out.write_text(json.dumps(recording if whole else left_hand_only(recording)))
+        written += 1
+    return written
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``left-hands SRC DST``: see the module docstring."""
+    """``swipes SRC DST`` and ``left-hands SRC DST``: see the module docstring."""
     import argparse  # noqa: PLC0415
 
     parser = argparse.ArgumentParser(
         prog="python -m cbgo.services.dynamic_gesture.leapjs",
         description="Real Leap Motion recordings (LeapJS frames) for the dynamic-gesture bench.")
     sub = parser.add_subparsers(dest="command", required=True)
-    left = sub.add_parser("left-hands", help="write the left-hand swipes of leapmotion-all "
-                                             "as a set for `cbgo bench dynamic --real`")
-    left.add_argument("src", type=Path, help="the leapmotion-all folder (precedent/, suivant/)")
-    left.add_argument("dst", type=Path, nargs="?",
-                      default=Path.home() / ".cache" / "cbgo" / "leapmotion-left",
-                      help="where to write it [~/.cache/cbgo/leapmotion-left]")
+    cache = Path.home() / ".cache" / "cbgo"
+    for command, default, text in (
+            ("swipes", "leapmotion-swipes", "write the swipes of leapmotion-all, both hands, "
+                                            "as a set for `cbgo bench dynamic --real`"),
+            ("left-hands", "leapmotion-left", "write its left-hand swipes only, left-hand "
+                                              "frames only")):
+        one = sub.add_parser(command, help=text, description=text)
+        one.add_argument("src", type=Path, help="the leapmotion-all folder (precedent/, suivant/)")
+        one.add_argument("dst", type=Path, nargs="?", default=cache / default,
+                         help=f"where to write it [~/.cache/cbgo/{default}]")
     args = parser.parse_args(argv)
+    sides = ("left", "right") if args.command == "swipes" else ("left",)
     try:
-        count = arrange_left_hands(args.src, args.dst)
-    except (OSError, ValueError) as exc:  # a recording missing, unreadable or not JSON
+        count = arrange_swipes(args.src, args.dst, sides)
+    except (OSError, ValueError, KeyError) as exc:  # missing, unreadable or not LeapJS JSON
         print(f"error: {exc}")
         return 2
-    print(f"wrote {count} left-hand swipes under {args.dst}; "
-          f"cbgo bench dynamic --real {args.dst} --per-class 0")
+    print(f"wrote {count} {'swipes' if len(sides) == 2 else 'left-hand swipes'} under "
+          f"{args.dst}; cbgo bench dynamic --real {args.dst} --per-class 0")
     return 0
 
 

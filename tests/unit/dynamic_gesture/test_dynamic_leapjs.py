@@ -187,28 +187,59 @@ def test_a_hand_turned_over_between_recordings_turns_rigidly_at_an_even_rate():
         assert np.linalg.norm(mid_tip) == pytest.approx(np.linalg.norm(tip))  # rigid
 
 
-def test_the_left_hand_swipes_of_leapmotion_all_become_a_set_of_left_hands(tmp_path):
+def two_hands(left_palms, right_palms, left_ids=None):
+    """A LeapJS recording of a left and a right hand (ids 3 and 4 unless `left_ids` says)."""
+    frames = []
+    for i, (lp, rp) in enumerate(zip(left_palms, right_palms, strict=True)):
+        left, left_fingers = leapjs_hand(lp, hand_id=left_ids[i] if left_ids else 3,
+                                         side="left")
+        right, right_fingers = leapjs_hand(rp, hand_id=4)
+        frames.append({"id": i, "timestamp": round(i * 1e6 / 115), "hands": [left, right],
+                       "pointables": left_fingers + right_fingers})
+    return {"frames": len(frames), "data": frames}
+
+
+def test_a_swipe_is_read_from_the_palm_that_moves_most_along_x():
+    still = swipe_palms(0.0) + [0, 0, 100]
+    assert leapjs.swipe_of(two_hands(swipe_palms(-220.0), still)) == ("left", "swipe_left")
+    assert leapjs.swipe_of(two_hands(still, swipe_palms(220.0))) == ("right", "swipe_right")
+
+
+def test_a_recording_that_breaks_the_swipe_rule_is_no_swipe():
+    still = swipe_palms(0.0) + [0, 0, 100]
+    across = swipe_palms(220.0) + np.linspace(0, 200, len(still))[:, None] * [0, 1, 0]
+    there_and_back = np.concatenate([swipe_palms(220.0), swipe_palms(-220.0) + [220, 0, 0]])
+    retracked = [3] * 100 + [5] * (len(still) - 100)
+    brief = swipe_palms(220.0, n=20)[40:60]  # 220 mm in 0.17 s
+    for left in (swipe_palms(80.0), across, brief):
+        assert leapjs.swipe_of(two_hands(left, still[:len(left)])) is None
+    assert leapjs.swipe_of(two_hands(there_and_back, np.concatenate([still, still]))) is None
+    assert leapjs.swipe_of(two_hands(swipe_palms(220.0), still, left_ids=retracked)) is None
+
+
+def test_the_swipes_of_leapmotion_all_become_a_set(tmp_path):
     src = tmp_path / "leapmotion-all"
-    for name in leapjs.LEFT_HAND_SWIPES:
-        frames = []
-        for i, palm in enumerate(swipe_palms(n=20)):
-            left, left_fingers = leapjs_hand(palm, hand_id=3, side="left")
-            right, right_fingers = leapjs_hand(palm + [0, 0, 100], hand_id=4)
-            frames.append({"id": i, "timestamp": round(i * 1e6 / 115), "hands": [left, right],
-                           "pointables": left_fingers + right_fingers})
+    still = swipe_palms(0.0) + [0, 0, 100]
+    takes = {"precedent/participant-2-6": two_hands(swipe_palms(220.0), still),
+             "suivant/participant-2-3": two_hands(still, swipe_palms(-220.0)),
+             "suivant/participant-5-8": two_hands(still, swipe_palms(80.0))}  # no swipe
+    for name, take in takes.items():
         (src / name).parent.mkdir(parents=True, exist_ok=True)
-        (src / f"{name}.json").write_text(json.dumps({"frames": len(frames), "data": frames}))
+        (src / f"{name}.json").write_text(json.dumps(take))
+    assert leapjs.main(["swipes", str(src), str(tmp_path / "both")]) == 0
+    both = leapjs.read_set(tmp_path / "both")
+    assert {(r.person, r.gesture, r.take) for r in both} == {
+        ("participant-2", "swipe_right", 6), ("participant-2", "swipe_left", 3)}
+    for frame in both[0].frames():  # whole: both hands, as the sensor reported them
+        assert sorted(h["side"] for h in frame["hands"]) == ["left", "right"]
     assert leapjs.main(["left-hands", str(src), str(tmp_path / "left")]) == 0
-    recordings = leapjs.read_set(tmp_path / "left")
-    assert len(recordings) == len(leapjs.LEFT_HAND_SWIPES)
-    assert {(r.person, r.gesture, r.take) for r in recordings} == {
-        (name.split("/")[1].rpartition("-")[0], gesture, int(name.rpartition("-")[2]))
-        for name, gesture in leapjs.LEFT_HAND_SWIPES.items()}
-    for frame in recordings[0].frames():
+    left = leapjs.read_set(tmp_path / "left")
+    assert [(r.person, r.gesture, r.take) for r in left] == [("participant-2", "swipe_right", 6)]
+    for frame in left[0].frames():
         assert [(h["side"], h["id"], len(h["fingers"])) for h in frame["hands"]] == [
             ("left", 3, 5)]
 
 
-def test_a_missing_leapmotion_all_recording_is_named(tmp_path, capsys):
-    assert leapjs.main(["left-hands", str(tmp_path), str(tmp_path / "left")]) == 2
+def test_a_folder_without_leapmotion_all_recordings_is_named(tmp_path, capsys):
+    assert leapjs.main(["swipes", str(tmp_path), str(tmp_path / "both")]) == 2
     assert "participant-" in capsys.readouterr().out
