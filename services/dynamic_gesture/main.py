@@ -7,7 +7,7 @@ Behaviour (the contract is services/dynamic_gesture/README.md):
 - each evaluated window (every ``eval_period_s`` while a stroke runs, and at its end) is
   classified against the whole template library (`classifier.Classifier`) and published on
   ``cbgo/gestures/dynamic`` (a running stroke's window only when its top gesture has
-  p ≥ `stroke.PARTIAL_P`): ``names`` are the templates plus ``none``, ``probs`` sum to 1,
+  p ≥ `stroke.partial_p`): ``names`` are the templates plus ``none``, ``probs`` sum to 1,
   ``window`` is ``[t_start, t_end]`` in the frames' clock, ``seq`` counts publications;
 - templates are the shipped defaults plus the user's (``<data dir>/gestures/dynamic/*.json``,
   taught with ``cbgo gestures record NAME --dynamic``); the control verb

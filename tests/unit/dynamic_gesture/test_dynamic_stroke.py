@@ -62,6 +62,18 @@ def test_a_running_stroke_is_reported_early_only_when_sure_and_always_at_its_end
     assert len(sure) == len(windows)
 
 
+def test_a_stroke_under_way_when_its_hand_appears_is_reported_early_only_when_very_sure(synth):
+    # What a hand does first is often the move that brings it into the field, or a wind-up.
+    windows = synth.feed(Segmenter(), synth.trajectory([SWIPE_UP, ("hold", 0.5)]))
+    assert len(windows) > 1 and all(w.seen_s <= stroke.NEW_HAND_S for w in windows)
+    fairly_sure = reported_windows(windows, lambda w: stroke.PARTIAL_P)
+    assert [w.final for w in fairly_sure] == [True]
+    assert len(reported_windows(windows, lambda w: stroke.NEW_HAND_P)) == len(windows)
+    rested = synth.feed(Segmenter(), synth.trajectory([REST, SWIPE_UP, ("hold", 0.5)]))
+    assert all(w.seen_s > stroke.NEW_HAND_S for w in rested)
+    assert len(reported_windows(rested, lambda w: stroke.PARTIAL_P)) == len(rested)
+
+
 def test_the_slower_return_move_after_a_gesture_is_not_reported(synth):
     traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.4), ("move", 0.9, (0, -160, 0)),
                              ("hold", 0.5)])
