@@ -117,7 +117,9 @@ def read_set(root: Path) -> list[Recording]:
     if not out:
         raise FileNotFoundError(
             f"no LeapJS recordings (NAME-TAKE.json) under {root}: copy the Guinevere folder of "
-            f"github.com/sluyters/QuantumLeap (backend/src/datasets/dynamic/guinevere) there")
+            f"github.com/sluyters/QuantumLeap (backend/src/datasets/dynamic/guinevere) there, "
+            f"or write leapmotion-all's swipes there (python -m "
+            f"cbgo.services.dynamic_gesture.leapjs swipes SRC {root})")
     return out
 
 

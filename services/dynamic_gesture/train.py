@@ -265,6 +265,7 @@ def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
     """Runs the whole training; returns templates, calibration and a summary."""
     t0 = time.perf_counter()
     return_s = SegmenterConfig().return_s
+    sequences = [] if real is None else shrec.read_split(real, "train")  # fails before simulating
     sim_train = simdata.generate(list(range(seed, seed + users)), simdata.TRAIN, reps, jobs)
     calib_seed = seed + CALIB_SEED
     sim_calib = simdata.generate(list(range(calib_seed, calib_seed + calib_users)),
@@ -272,8 +273,8 @@ def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
     log(f"simulated {users} training and {calib_users} calibration users in "
         f"{time.perf_counter() - t0:.1f} s")
     recordings = []
-    if real is not None:
-        recordings = shrec.sequence_windows(shrec.read_split(real, "train"))
+    if sequences:
+        recordings = shrec.sequence_windows(sequences)
         log(f"segmented {len(recordings)} real recordings of the SHREC'17 train split "
             f"({len({r[0].person for r in recordings})} people)")
     summary: dict = {"users": users, "calib_users": calib_users, "reps": reps, "seed": seed,

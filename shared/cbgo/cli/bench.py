@@ -13,6 +13,8 @@ import argparse
 import importlib
 
 from cbgo.bench import BENCHES
+from cbgo.cli.common import fail
+from cbgo.errors import ConfigError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -28,4 +30,9 @@ def run(args: argparse.Namespace) -> int:
     parser = argparse.ArgumentParser(prog=f"cbgo bench {args.bench}", description=module.__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     module.add_arguments(parser)
-    return module.run(parser.parse_args(args.args))
+    options = parser.parse_args(args.args)
+    try:
+        return module.run(options)
+    except (ConfigError, FileNotFoundError) as e:  # a data folder or model not there
+        fail(str(e), 2)
+        return 2

@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import importlib
 
+from cbgo.cli.common import fail
+from cbgo.errors import ConfigError
 from cbgo.train import TRAINERS
 
 
@@ -27,4 +29,9 @@ def run(args: argparse.Namespace) -> int:
     parser = argparse.ArgumentParser(prog=f"cbgo train {args.trainer}", description=module.__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     module.add_arguments(parser)
-    return module.run(parser.parse_args(args.args))
+    options = parser.parse_args(args.args)
+    try:
+        return module.run(options)
+    except (ConfigError, FileNotFoundError) as e:  # a data folder or model not there
+        fail(str(e), 2)
+        return 2

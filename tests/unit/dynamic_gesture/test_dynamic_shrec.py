@@ -242,3 +242,15 @@ def test_a_trial_is_answered_by_its_surest_window_its_surest_final_and_its_first
         return [0.45, 0.0, 0.55]
 
     assert set(train.trial_answers(_Answers(unsure), windows, 1.5).values()) == {"nothing"}
+
+
+@pytest.mark.parametrize("argv", [["bench", "dynamic", "--real"],
+                                  ["train", "dynamic", "--folds", "2", "--real"]])
+def test_the_cli_names_a_missing_data_folder_without_a_traceback(tmp_path, capsys, argv):
+    from cbgo.cli.main import main
+
+    with pytest.raises(SystemExit) as ended:
+        main([*argv, str(tmp_path)])
+    err = capsys.readouterr().err
+    assert ended.value.code == 2 and err.startswith("cbgo: no ") and "Traceback" not in err
+    assert str(tmp_path) in err
