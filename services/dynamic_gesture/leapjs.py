@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -257,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         count = arrange_swipes(args.src, args.dst, sides)
     except (OSError, ValueError, KeyError) as exc:  # missing, unreadable or not LeapJS JSON
-        print(f"error: {exc}")
+        print(f"error: {exc}", file=sys.stderr)
         return 2
     print(f"wrote {count} {'swipes' if len(sides) == 2 else 'left-hand swipes'} under "
           f"{args.dst}; cbgo bench dynamic --real {args.dst} --per-class 0")

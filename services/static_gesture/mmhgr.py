@@ -299,7 +299,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.verb == "convert":
         out = args.out or default_cache()
-        n = convert(args.src, out)
+        try:
+            n = convert(args.src, out)
+        except (OSError, ValueError) as exc:  # no copy there, or an unreadable frame
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
         print(f"wrote {n} frames to {out}")
         return 0
     frames = load(args.file)

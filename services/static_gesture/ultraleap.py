@@ -38,11 +38,13 @@ Example::
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from cbgo.errors import ConfigError
 from cbgo.hands import features as F
 from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW
 from cbgo.wire import BONE_TYPES, FINGER_TYPES
@@ -211,7 +213,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--model", type=Path, default=None,
                         help="model path (default: the one the service loads)")
     args = parser.parse_args(argv)
-    print_scores(score_poses(StaticClassifier.load(args.model or default_model_path())))
+    try:
+        model = StaticClassifier.load(args.model or default_model_path())
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print_scores(score_poses(model))
     return 0
 
 

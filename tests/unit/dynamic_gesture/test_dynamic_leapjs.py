@@ -242,4 +242,4 @@ def test_the_swipes_of_leapmotion_all_become_a_set(tmp_path):
 
 def test_a_folder_without_leapmotion_all_recordings_is_named(tmp_path, capsys):
     assert leapjs.main(["swipes", str(tmp_path), str(tmp_path / "both")]) == 2
-    assert "participant-" in capsys.readouterr().out
+    assert "participant-" in capsys.readouterr().err

@@ -90,6 +90,11 @@ def test_a_folder_without_frames_is_named(tmp_path):
         mmhgr.convert(tmp_path, tmp_path / "c.npz")
 
 
+def test_the_command_line_names_a_folder_without_frames(tmp_path, capsys):
+    assert mmhgr.main(["convert", str(tmp_path), "--out", str(tmp_path / "c.npz")]) == 2
+    assert "frame_" in capsys.readouterr().err and not (tmp_path / "c.npz").exists()
+
+
 def test_the_loader_says_none_without_a_cache(tmp_path):
     assert mmhgr.load(tmp_path / "absent.npz") is None
 

@@ -93,3 +93,8 @@ def test_the_bench_scores_every_pose_as_held_and_turned_with_the_shipped_model(c
         assert np.allclose(probs[0], probs[1], atol=1e-6)
     ultraleap.print_scores(fig)
     assert "Gemini" in capsys.readouterr().out
+
+
+def test_the_command_line_names_a_model_it_cannot_load(tmp_path, capsys):
+    assert ultraleap.main(["--model", str(tmp_path / "absent")]) == 2
+    assert "cannot load model" in capsys.readouterr().err
