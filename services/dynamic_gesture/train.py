@@ -95,6 +95,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the SHREC'17 datasetShrec folder: add its train split's people")
     parser.add_argument("--folds", type=int, default=0,
                         help="also score the real people leave-group-out in N groups [0: no]")
+    parser.add_argument("--misses", action="store_true",
+                        help="with --folds: list every held-out swipe recording answered wrong, "
+                             "with how far its palm moved")
 
 
 def demonstrations(users: list[simdata.UserData]) -> dict[str, list]:
@@ -209,6 +212,7 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     left_right = {rule: {n: [0, 0] for n in shrec.SWIPE_DIRECTIONS} for rule in RULES}
     other = 0
     other_false = dict.fromkeys(RULES, 0)
+    misses = []
     streams = []
     rng = np.random.default_rng(TRAIN_SEED)
     config = SegmenterConfig(return_s=return_s)
@@ -221,11 +225,14 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
             if seq.person not in held:
                 continue
             other += seq.name not in shrec.SWIPE_DIRECTIONS
-            for rule, answer in trial_answers(classifier, windows, return_s).items():
+            answers = trial_answers(classifier, windows, return_s)
+            for rule, answer in answers.items():
                 if seq.name in shrec.SWIPE_DIRECTIONS:
                     confusion[rule][names.index(seq.name), names.index(answer)] += 1
                 else:
                     other_false[rule] += answer != "nothing"
+            if seq.name in shrec.SWIPE_DIRECTIONS and set(answers.values()) != {seq.name}:
+                misses.append(_miss(seq, answers))
             if seq.name in shrec.SWIPE_DIRECTIONS:
                 lefts = [mirrored_window(w) for w in windows]
                 for rule, answer in trial_answers(classifier, lefts, return_s).items():
@@ -239,7 +246,7 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
                                                                       rng)]
         log(f"  fold {k + 1}/{folds}: people {sorted(held)} scored")
     out = {"folds": folds, "people": people, "names": names, "other_trials": other,
-           "streams": realbench.stream_totals(streams)}
+           "streams": realbench.stream_totals(streams), "misses": misses}
     for rule in RULES:
         c = confusion[rule]
         recall = {n: float(c[i, i] / max(c[i].sum(), 1)) for i, n in enumerate(names[:4])}
@@ -250,6 +257,22 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
                     f"left_hand_balanced_accuracy{suffix}": float(np.mean(
                         [right / max(n, 1) for right, n in left_right[rule].values()]))})
     return out
+
+
+def _miss(seq: shrec.Sequence, answers: dict[str, str]) -> dict:
+    """Returns a held-out swipe recording answered wrong by some rule, for `--misses`.
+
+    With how far its palm went from where it started (mm): the farthest, and the farthest in
+    the swipe's direction and against it (some recordings barely move, or mostly the other
+    way).
+    """
+    palm = seq.joints()[:, 1] * 1000.0
+    way = palm - palm[0]
+    along = way @ np.asarray(shrec.SWIPE_DIRECTIONS[seq.name])
+    return {"person": seq.person, "swipe": seq.name, "fingers": seq.fingers, "take": seq.take,
+            **answers, "reach_mm": round(float(np.linalg.norm(way, axis=1).max())),
+            "along_mm": round(float(max(along.max(), 0.0))),
+            "against_mm": round(float(max(-along.min(), 0.0)))}
 
 
 def mirrored_window(window):
@@ -295,8 +318,8 @@ def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
     return classifier.templates, classifier.calibration, summary
 
 
-def print_leave_people_out(block: dict) -> None:
-    """Prints the leave-people-out trial figures."""
+def print_leave_people_out(block: dict, misses: bool = False) -> None:
+    """Prints the leave-people-out trial figures (and the recordings missed, `misses`)."""
     print(f"\nreal people, leave-people-out ({block['folds']} groups of the SHREC'17 train "
           f"split's {len(block['people'])} people), one recording = one trial:")
     for suffix, how in (("", "its most probable reported window"),
@@ -314,6 +337,14 @@ def print_leave_people_out(block: dict) -> None:
         if f"left_hand_balanced_accuracy{suffix}" in block:
             print(f"the same swipes mirrored, as a left hand makes them: balanced accuracy "
                   f"{block[f'left_hand_balanced_accuracy{suffix}']:.1%}")
+    if misses and block.get("misses"):
+        print(f"\nheld-out swipe recordings answered wrong by some rule "
+              f"({len(block['misses'])}; any window / final windows / first reported; how far "
+              f"the palm went from its start: at most, in the swipe's direction, against it):")
+        for m in block["misses"]:
+            print(f"  person {m['person']:2d} {m['swipe']:11s} fingers {m['fingers']} take "
+                  f"{m['take']}: {m['all']} / {m['finals']} / {m['first']}; palm "
+                  f"{m['reach_mm']} mm, {m['along_mm']} its way, {m['against_mm']} against")
     s = block.get("streams")
     if s and s["strokes"]:
         print(f"\ncontinuous streams of the held-out people ({STREAMS_PER_PERSON} each, 10 "
@@ -329,9 +360,12 @@ def run(args: argparse.Namespace) -> int:
     config = SegmenterConfig()
     observation = {"rate_hz": RATE_HZ, "dims": ["x", "y", "z", "k*roll"],
                    "roll_scale_mm_per_rad": config.roll_scale_mm_per_rad}
-    save_default(out, templates, calibration, observation, summary)
+    lpo = summary.get("leave_people_out", {})
+    saved = {**summary, "leave_people_out": {k: v for k, v in lpo.items() if k != "misses"}
+             } if lpo else summary
+    save_default(out, templates, calibration, observation, saved)
     if "leave_people_out" in summary:
-        print_leave_people_out(summary["leave_people_out"])
+        print_leave_people_out(summary["leave_people_out"], args.misses)
     figures = summary["calibration_set"]
     names = [t.name for t in templates] + [NONE]
     print("\nend-of-stroke windows of the calibration set (in-sample):")

@@ -183,6 +183,24 @@ def test_leave_people_out_scores_each_person_with_a_library_learned_without_them
     assert block["left_hand_balanced_accuracy"] == pytest.approx(block["balanced_accuracy"])
     assert block["left_hand_balanced_accuracy_finals"] == pytest.approx(
         block["balanced_accuracy_finals"])
+    # `--misses`: every recording some rule answered wrong, and only those
+    wrong = max(4 - int(np.trace(np.asarray(block[f"confusion{suffix}"])))
+                for suffix in ("", "_finals", "_first"))
+    assert len(block["misses"]) >= wrong
+    assert all({m["all"], m["finals"], m["first"]} != {m["swipe"]} for m in block["misses"])
+
+
+def test_a_missed_recording_says_how_far_its_palm_went_and_which_way(tmp_path):
+    t = np.linspace(0, 1, 15)[:, None, None]
+    swipe = upright_hand()[None] + t * np.array([0.2, 0.0, 0.0])  # 200 mm to the right
+    write_sequence(tmp_path, 8, 2, 1, swipe)  # labelled swipe_left
+    (tmp_path / "train_gestures.txt").write_text(f"8 1 2 1 8 15 {len(swipe)}\n")
+    (tmp_path / "test_gestures.txt").write_text("")
+    (seq,) = shrec.read_split(tmp_path, "train")
+    miss = train._miss(seq, {"all": "swipe_right", "finals": "swipe_right", "first": "nothing"})
+    assert (miss["person"], miss["swipe"], miss["all"], miss["first"]) == (
+        2, "swipe_left", "swipe_right", "nothing")
+    assert (miss["reach_mm"], miss["along_mm"], miss["against_mm"]) == (200, 0, 200)
 
 
 def test_simulated_trials_give_each_user_every_dynamic_gesture_in_its_own_appearance():
