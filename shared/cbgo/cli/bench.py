@@ -10,11 +10,9 @@ Examples::
 from __future__ import annotations
 
 import argparse
-import importlib
 
 from cbgo.bench import BENCHES
-from cbgo.cli.common import fail
-from cbgo.errors import ConfigError
+from cbgo.cli.common import run_module
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,13 +24,4 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Imports the chosen benchmark, parses its options and runs it."""
-    module = importlib.import_module(BENCHES[args.bench][0])
-    parser = argparse.ArgumentParser(prog=f"cbgo bench {args.bench}", description=module.__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    module.add_arguments(parser)
-    options = parser.parse_args(args.args)
-    try:
-        return module.run(options)
-    except (ConfigError, FileNotFoundError) as e:  # a data folder or model not there
-        fail(str(e), 2)
-        return 2
+    return run_module(BENCHES[args.bench][0], f"cbgo bench {args.bench}", args.args)

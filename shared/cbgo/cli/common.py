@@ -8,6 +8,7 @@ the flags are `cbgo.client`'s; this module turns its errors into a message and a
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import sys
 from collections.abc import Iterator
@@ -16,15 +17,34 @@ from pathlib import Path
 from typing import Any
 
 from cbgo.client import ConnectError, add_network_arguments, connect
+from cbgo.errors import ConfigError
 from cbgo.keys import Keys
 
-__all__ = ["add_network_arguments", "fail", "read_json_argument", "session"]
+__all__ = ["add_network_arguments", "fail", "read_json_argument", "run_module", "session"]
 
 
 def fail(message: str, code: int = 1) -> None:
     """Prints an error for the user and exits."""
     print(f"cbgo: {message}", file=sys.stderr)
     sys.exit(code)
+
+
+def run_module(module_name: str, prog: str, argv: list[str]) -> int:
+    """Runs a module's own command line: its `add_arguments` and `run` (a bench, a trainer).
+
+    A data folder or model that is not there (`ConfigError`, `FileNotFoundError`) ends the
+    command with its message (exit code 2), not a traceback.
+    """
+    module = importlib.import_module(module_name)  # lazily: torch, MuJoCo...
+    parser = argparse.ArgumentParser(prog=prog, description=module.__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    module.add_arguments(parser)
+    options = parser.parse_args(argv)
+    try:
+        return module.run(options)
+    except (ConfigError, FileNotFoundError) as e:
+        fail(str(e), 2)
+        return 2
 
 
 @contextmanager

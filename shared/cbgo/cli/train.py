@@ -9,10 +9,8 @@ Examples::
 from __future__ import annotations
 
 import argparse
-import importlib
 
-from cbgo.cli.common import fail
-from cbgo.errors import ConfigError
+from cbgo.cli.common import run_module
 from cbgo.train import TRAINERS
 
 
@@ -25,13 +23,4 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Imports the chosen trainer, parses its options and runs it."""
-    module = importlib.import_module(TRAINERS[args.trainer][0])
-    parser = argparse.ArgumentParser(prog=f"cbgo train {args.trainer}", description=module.__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    module.add_arguments(parser)
-    options = parser.parse_args(args.args)
-    try:
-        return module.run(options)
-    except (ConfigError, FileNotFoundError) as e:  # a data folder or model not there
-        fail(str(e), 2)
-        return 2
+    return run_module(TRAINERS[args.trainer][0], f"cbgo train {args.trainer}", args.args)
