@@ -213,6 +213,7 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     other = 0
     other_false = dict.fromkeys(RULES, 0)
     misses = []
+    scored = []  # (person, truth, {rule: answer}) of every held-out swipe recording
     streams = []
     rng = np.random.default_rng(TRAIN_SEED)
     config = SegmenterConfig(return_s=return_s)
@@ -231,8 +232,10 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
                     confusion[rule][names.index(seq.name), names.index(answer)] += 1
                 else:
                     other_false[rule] += answer != "nothing"
-            if seq.name in shrec.SWIPE_DIRECTIONS and set(answers.values()) != {seq.name}:
-                misses.append(_miss(seq, answers))
+            if seq.name in shrec.SWIPE_DIRECTIONS:
+                scored.append((seq.person, seq.name, answers))
+                if set(answers.values()) != {seq.name}:
+                    misses.append(_miss(seq, answers))
             if seq.name in shrec.SWIPE_DIRECTIONS:
                 lefts = [mirrored_window(w) for w in windows]
                 for rule, answer in trial_answers(classifier, lefts, return_s).items():
@@ -249,14 +252,25 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
            "streams": realbench.stream_totals(streams), "misses": misses}
     for rule in RULES:
         c = confusion[rule]
-        recall = {n: float(c[i, i] / max(c[i].sum(), 1)) for i, n in enumerate(names[:4])}
+        recall = {n: float(c[i, i] / c[i].sum()) for i, n in enumerate(names[:4]) if c[i].sum()}
         suffix = SUFFIXES[rule]
         out.update({f"confusion{suffix}": c.tolist(), f"recall{suffix}": recall,
                     f"balanced_accuracy{suffix}": float(np.mean(list(recall.values()))),
+                    f"interval{suffix}": _interval(scored, rule, names),
                     f"other_reported{suffix}": other_false[rule],
                     f"left_hand_balanced_accuracy{suffix}": float(np.mean(
-                        [right / max(n, 1) for right, n in left_right[rule].values()]))})
+                        [right / n for right, n in left_right[rule].values() if n]))})
     return out
+
+
+def _interval(scored: list[tuple], rule: str, names: list[str]) -> list[float]:
+    """Returns the 95 % bootstrap interval over people of one rule's balanced accuracy."""
+    if not scored:
+        return [float("nan"), float("nan")]
+    people, truths, answers = zip(*scored, strict=True)
+    return list(metrics.people_interval([names.index(t) for t in truths],
+                                        [names.index(a[rule]) for a in answers],
+                                        np.array(people), len(names)))
 
 
 def _miss(seq: shrec.Sequence, answers: dict[str, str]) -> dict:
@@ -329,8 +343,11 @@ def print_leave_people_out(block: dict, misses: bool = False) -> None:
             continue
         print(f"\nanswered by {how}:")
         print(metrics.format_confusion(np.asarray(block[f"confusion{suffix}"]), block["names"]))
+        interval = block.get(f"interval{suffix}")
+        within = (f" (95 % interval over people, bootstrap: {interval[0]:.1%}–{interval[1]:.1%})"
+                  if interval else "")
         print("recall " + ", ".join(f"{n} {r:.1%}" for n, r in block[f"recall{suffix}"].items())
-              + f"; balanced accuracy {block[f'balanced_accuracy{suffix}']:.1%}")
+              + f"; balanced accuracy {block[f'balanced_accuracy{suffix}']:.1%}{within}")
         print(f"other gestures (grab, tap, expand, pinch, shake): "
               f"{block[f'other_reported{suffix}']} of {block['other_trials']} recordings "
               f"reported a dynamic gesture")

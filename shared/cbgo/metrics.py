@@ -30,6 +30,29 @@ def balanced_accuracy(y_true: np.ndarray, y_pred: np.ndarray, n_classes: int) ->
     return float(np.nanmean(recall))
 
 
+def people_interval(y_true: np.ndarray, y_pred: np.ndarray, people: np.ndarray,
+                    n_classes: int, draws: int = 2000, level: float = 0.95, seed: int = 0
+                    ) -> tuple[float, float]:
+    """Returns a bootstrap interval of the balanced accuracy over the people who were scored.
+
+    The people are drawn with replacement (each with all of their trials), so the interval
+    says how much the figure would move with other people of the same kind: trials of one
+    person are not independent of each other, people are. A percentile interval of `draws`
+    resamples, deterministic for a `seed`.
+    """
+    y_true, y_pred, people = map(np.asarray, (y_true, y_pred, people))
+    ids, index = np.unique(people, return_inverse=True)
+    rows = [np.flatnonzero(index == k) for k in range(len(ids))]
+    rng = np.random.default_rng(seed)
+    figures = []
+    for _ in range(draws):
+        pick = np.concatenate([rows[k] for k in rng.integers(len(ids), size=len(ids))])
+        figures.append(balanced_accuracy(y_true[pick], y_pred[pick], n_classes))
+    tail = 50.0 * (1.0 - level)
+    lo, hi = np.percentile(figures, [tail, 100.0 - tail])
+    return float(lo), float(hi)
+
+
 def expected_calibration_error(probs: np.ndarray, y_true: np.ndarray, bins: int = 15) -> float:
     """Returns the ECE of (N, C) probabilities against true labels, equal-width bins."""
     probs = np.asarray(probs)

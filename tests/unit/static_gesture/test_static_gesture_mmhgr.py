@@ -207,6 +207,9 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert fig["classes"] == ["grab", "five", "thumbsup"] and fig["n"] == 4 * 3 * 2
     assert set(fig["per_person"]) == {1, 2, 3, 4}
     assert set(fig["rejection"]) <= {"C", "L"} and fig["rejection_n"] > 0
+    for key in ("interval", "rejection_interval"):  # how far other people move the figures
+        lo, hi = fig[key]
+        assert 0.0 <= lo <= hi <= 1.0
     assert sum(b["n"] for b in fig["by_confidence"]) == fig["n"]
     assert set(fig["turned"]) == set(crossval.TURNS)
     assert fig["rejection_overall"] >= fig["network"]["rejection_overall"]
