@@ -226,6 +226,17 @@ def test_the_live_score_counts_rotate_when_the_trials_hold_it():
     assert block["balanced_accuracy"] == 0.5 and block["other_false"] == 1
 
 
+def test_the_live_score_says_how_far_other_people_could_move_it():
+    rows = [{"truth": t, "dynamic": t, "person": p}
+            for p in "abc" for t in ("swipe_up", "swipe_down")]
+    rows[0]["dynamic"] = realbench.NOTHING  # person a misses a swipe_up
+    block = realbench.score(rows, "dynamic")
+    lo, hi = block["interval"]
+    assert block["people"] == 3 and lo < block["balanced_accuracy"] < hi == 1.0
+    one = realbench.score([{**r, "person": "a"} for r in rows], "dynamic")
+    assert one["interval"] is None  # one person: nothing to draw from
+
+
 def test_the_live_score_reads_the_field_asked_for():
     rows = [{"truth": "swipe_up", "dynamic": "swipe_up", "first": "swipe_down"},
             {"truth": "swipe_down", "dynamic": "swipe_down", "first": "swipe_down"}]
