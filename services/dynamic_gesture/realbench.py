@@ -11,7 +11,8 @@ Guinevere set, ~115 Hz; a folder of person folders of ``NAME-TAKE.json``). Print
   return it holds) is one episode, the hand then leaving the field. The dynamic answer of a
   trial is its most probable reported gesture with p ≥ 0.5 (else "nothing"); the episode's is
   the dynamic gesture with the largest g. Per-class recall, the confusion matrix and the
-  balanced accuracy over the four swipes. The other gestures of the data set (grab, tap,
+  balanced accuracy over the four swipes, with its 95 % interval over the set's people
+  (`cbgo.metrics.people_interval`: how far other people could move it). The other gestures of the data set (grab, tap,
   pinch, expand, shake) are played too: any swipe or rotate reported for them is a false
   trigger.
 - **Continuous streams**: per person, several recordings one after the other without the
