@@ -212,8 +212,11 @@ class _Player:
         """Plays (time, hands) frames at their recorded times, then empty frames.
 
         Each play is a new appearance of its hands, with new tracking ids as a real sensor
-        gives them (the service keeps each hand's last gesture to tell its return). Returns
-        the ts span of the recording.
+        gives them (the service keeps each hand's last gesture to tell its return). A frame is
+        stamped with the time it was due, as a sensor stamps its capture time: when this
+        process falls behind (a busy machine), its frames go out late but keep their spacing,
+        instead of showing a gap that ends the episode mid-gesture. Returns the ts span of
+        the recording.
         """
         ids: dict[int, int] = {}
         t_first = time.time()
@@ -226,7 +229,7 @@ class _Player:
                     self.hand_id += 1
                     ids[hand["id"]] = self.hand_id
             hands = [{**hand, "id": ids[hand["id"]]} for hand in hands]
-            self.pub.put(wire.encode(keys.HANDS_FRAME.message(ts=time.time(), seq=self.seq,
+            self.pub.put(wire.encode(keys.HANDS_FRAME.message(ts=t_first + t, seq=self.seq,
                                                               source="replay", device=device,
                                                               hands=hands)))
             self.seq += 1
