@@ -12,9 +12,9 @@ Guinevere set, ~115 Hz; a folder of person folders of ``NAME-TAKE.json``). Print
   trial is its most probable reported gesture with p ≥ 0.5 (else "nothing"); the episode's is
   the dynamic gesture with the largest g. Per-class recall, the confusion matrix and the
   balanced accuracy over the four swipes, with its 95 % interval over the set's people
-  (`cbgo.metrics.people_interval`: how far other people could move it). The other gestures of the data set (grab, tap,
-  pinch, expand, shake) are played too: any swipe or rotate reported for them is a false
-  trigger.
+  (`cbgo.metrics.people_interval`: how far other people could move it). The other gestures
+  of the data set (grab, tap, pinch, expand, shake) are played too: any swipe or rotate
+  reported for them is a false trigger.
 - **Continuous streams**: per person, several recordings one after the other without the
   hand leaving (a slow move, at least 0.6 s, from the end of one to the start of the next,
   then a 0.4 s hold; SHREC'17 from its joints, `stream_joints`, LeapJS from its hands,
