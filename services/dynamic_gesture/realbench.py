@@ -25,6 +25,9 @@ Guinevere set, ~115 Hz; a folder of person folders of ``NAME-TAKE.json``). Print
   rest fired on returns, holds and moves, and are given per minute of the time outside every
   gesture (`stream_figures`).
 - **Latency**: from a stroke's last sample (``window[1]``) to the arrival of its last window.
+- **Messages no summary holds**: gesture messages that reached the episode service after their
+  episode had ended, or about no episode (its status' ``stray``), printed when there are any:
+  a summary that misses a gesture its ``gestures/dynamic`` messages carried is explained there.
 
 With ``--mirror`` every recording is played mirrored across the body's midline (x → −x,
 sides swapped; `cbgo.hands.model.mirrored_hand`), as the other hand makes it, a swipe_left
@@ -627,6 +630,8 @@ def play_live(trials: list[Trial], streams: list[tuple], device: str, where: str
         result = run_trials(player, trials, device, log)
         result["streams"] = [run_stream(player, *stream, device) for stream in streams]
         result["latency_ms"] = latencies(player)
+        # Gesture messages the episode service could not place: a summary misses them.
+        result["episode_stray"] = stack.status("episode").get("stray", {})
     return result
 
 
@@ -639,6 +644,11 @@ def report_live(result: dict, json_path: Path | None, log=print) -> int:
     if total["strokes"]:
         log(f"\ncontinuous streams ({len(result['streams'])}, hand never leaves): "
             + describe_streams(total))
+    stray = result.get("episode_stray") or {}
+    if any(stray.values()):
+        log(f"episode service: {stray.get('late', 0)} gesture messages arrived after their "
+            f"episode had ended, {stray.get('outside', 0)} about no episode; no summary holds "
+            f"them")
     lat = result["latency_ms"]
     if lat:
         log(f"latency stroke end -> last window arrives: p50 {lat['p50']:.0f} ms, p90 "

@@ -237,6 +237,20 @@ def test_the_live_score_says_how_far_other_people_could_move_it():
     assert one["interval"] is None  # one person: nothing to draw from
 
 
+def test_the_live_report_names_gesture_messages_no_summary_holds(capsys):
+    rows = [{"truth": "swipe_up", "dynamic": "swipe_up", "first": "swipe_up",
+             "summary": realbench.NOTHING, "person": "a"}]
+    lines = []
+    result = {"trials": rows, "streams": [], "latency_ms": {},
+              "episode_stray": {"late": 1, "outside": 0}}
+    assert realbench.report_live(result, None, lines.append) == 0
+    assert any("1 gesture messages arrived after their episode had ended" in x for x in lines)
+    lines.clear()
+    realbench.report_live({**result, "episode_stray": {"late": 0, "outside": 0}}, None,
+                          lines.append)
+    assert not any("episode service" in x for x in lines)
+
+
 def test_the_live_score_reads_the_field_asked_for():
     rows = [{"truth": "swipe_up", "dynamic": "swipe_up", "first": "swipe_down"},
             {"truth": "swipe_down", "dynamic": "swipe_down", "first": "swipe_down"}]
