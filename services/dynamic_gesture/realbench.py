@@ -539,8 +539,7 @@ def score(rows: list[dict], field: str) -> dict:
               if confusion[i].sum()}
     false = sum(1 for r in rows if r["truth"] == "none" and r[field] != NOTHING)
     people = [r.get("person", "") for r in swipe_rows]
-    interval = (list(metrics.people_interval(y, pred, np.array(people), len(names)))
-                if len(set(people)) > 1 else None)
+    interval = list(metrics.people_interval(y, pred, people)) if len(set(people)) > 1 else None
     return {"recall": recall, "balanced_accuracy": float(np.mean(list(recall.values()))),
             "interval": interval, "people": len(set(people)),
             "confusion": confusion.tolist(), "names": names,
@@ -687,11 +686,9 @@ def _print_score(field: str, block: dict) -> None:
     where = {"dynamic": "gestures/dynamic (its most probable message)",
              "first": "gestures/dynamic, its first gesture (a consumer that acts at once)",
              "summary": "episode/summary g"}[field]
-    interval = block.get("interval")
-    within = (f" (95 % interval over the {block['people']} people, bootstrap: "
-              f"{interval[0]:.1%}–{interval[1]:.1%})" if interval else "")
     print(f"\n{where}: balanced accuracy over {', '.join(block['recall'])} "
-          f"{block['balanced_accuracy']:.1%}{within}")
+          f"{block['balanced_accuracy']:.1%}"
+          f"{metrics.format_interval(block.get('interval'), block.get('people'))}")
     print(metrics.format_confusion(np.asarray(block["confusion"]), block["names"]))
     print("recall " + ", ".join(f"{n} {r:.0%}" for n, r in block["recall"].items()))
     if block["other_trials"]:

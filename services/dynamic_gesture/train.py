@@ -256,21 +256,19 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
         suffix = SUFFIXES[rule]
         out.update({f"confusion{suffix}": c.tolist(), f"recall{suffix}": recall,
                     f"balanced_accuracy{suffix}": float(np.mean(list(recall.values()))),
-                    f"interval{suffix}": _interval(scored, rule, names),
+                    f"interval{suffix}": _interval(scored, rule),
                     f"other_reported{suffix}": other_false[rule],
                     f"left_hand_balanced_accuracy{suffix}": float(np.mean(
                         [right / n for right, n in left_right[rule].values() if n]))})
     return out
 
 
-def _interval(scored: list[tuple], rule: str, names: list[str]) -> list[float]:
+def _interval(scored: list[tuple], rule: str) -> list[float] | None:
     """Returns the 95 % bootstrap interval over people of one rule's balanced accuracy."""
     if not scored:
-        return [float("nan"), float("nan")]
+        return None
     people, truths, answers = zip(*scored, strict=True)
-    return list(metrics.people_interval([names.index(t) for t in truths],
-                                        [names.index(a[rule]) for a in answers],
-                                        np.array(people), len(names)))
+    return list(metrics.people_interval(truths, [a[rule] for a in answers], people))
 
 
 def _miss(seq: shrec.Sequence, answers: dict[str, str]) -> dict:
@@ -343,11 +341,9 @@ def print_leave_people_out(block: dict, misses: bool = False) -> None:
             continue
         print(f"\nanswered by {how}:")
         print(metrics.format_confusion(np.asarray(block[f"confusion{suffix}"]), block["names"]))
-        interval = block.get(f"interval{suffix}")
-        within = (f" (95 % interval over people, bootstrap: {interval[0]:.1%}–{interval[1]:.1%})"
-                  if interval else "")
         print("recall " + ", ".join(f"{n} {r:.1%}" for n, r in block[f"recall{suffix}"].items())
-              + f"; balanced accuracy {block[f'balanced_accuracy{suffix}']:.1%}{within}")
+              + f"; balanced accuracy {block[f'balanced_accuracy{suffix}']:.1%}"
+              + metrics.format_interval(block.get(f"interval{suffix}")))
         print(f"other gestures (grab, tap, expand, pinch, shake): "
               f"{block[f'other_reported{suffix}']} of {block['other_trials']} recordings "
               f"reported a dynamic gesture")

@@ -179,10 +179,11 @@ def summarise(parts: list[dict]) -> dict:
         turned_correct = np.concatenate([p["turned"][name] for p in parts]) == label
         turned[name] = _balanced(turned_correct, label, known, classes)
     return {"classes": classes, "recall": recall, "balanced_accuracy": float(np.mean(recall)),
-            "interval": _people_interval(label[known], pred[known], user[known], classes),
+            "interval": _people_interval(label[known], pred[known], user[known]),
+            # the rejection as a one-class recall: every truth NONE, a rejected frame's answer NONE
             "rejection_interval": _people_interval(np.full(int(held.sum()), NONE),
                                                    np.where(rejected[held], NONE, "kept"),
-                                                   user[held], [NONE]),
+                                                   user[held]),
             "turned": turned, "network": network,
             "accuracy": float(correct[known].mean()), "n": int(known.sum()),
             "per_person": per_person, "per_style": per_style, "confusion": confusion,
@@ -193,19 +194,10 @@ def summarise(parts: list[dict]) -> dict:
             "by_confidence": by_conf, "tracker_agrees": tracker}
 
 
-def _people_interval(label: np.ndarray, pred: np.ndarray, user: np.ndarray,
-                     classes: list[str]) -> list[float] | None:
-    """Returns the 95 % bootstrap interval over people of the mean recall over `classes`.
-
-    Any answer outside `classes` counts as wrong. With one class it is a rate: the rejection's,
-    every frame's truth `NONE` and a rejected frame's answer `NONE`.
-    """
-    if not len(label):
-        return None
-    index = {c: i for i, c in enumerate(classes)}
-    other = len(classes)
-    return list(metrics.people_interval([index[x] for x in label],
-                                        [index.get(x, other) for x in pred], user, other + 1))
+def _people_interval(label: np.ndarray, pred: np.ndarray, user: np.ndarray
+                     ) -> list[float] | None:
+    """Returns the 95 % bootstrap interval over people of the mean recall (None: no frame)."""
+    return list(metrics.people_interval(label, pred, user)) if len(label) else None
 
 
 def _rejected(pred: np.ndarray, top: np.ndarray) -> np.ndarray:
@@ -234,20 +226,14 @@ def tracker_styles(user: np.ndarray, confidence: np.ndarray) -> dict[str, list[i
     return {k: v for k, v in styles.items() if v}
 
 
-def _within(interval: list[float] | None) -> str:
-    """Returns " (95 % interval over people: lo–hi)", or "" without one."""
-    if not interval:
-        return ""
-    return f" (95 % interval over people, bootstrap: {interval[0]:.1%}–{interval[1]:.1%})"
-
-
 def print_figures(fig: dict) -> None:
     """Prints the cross-validation figures."""
     kind = ("leave-one-person-out" if fig["folds"] == fig["people"]
             else f"{fig['folds']} folds of people")
     print(f"real frames of unseen people (multi-modal Leap HGR, {fig['people']} people, {kind}; "
           f"{fig['seconds']:.0f} s): balanced accuracy {fig['balanced_accuracy']:.2%}"
-          f"{_within(fig.get('interval'))}, frame accuracy {fig['accuracy']:.2%} (n={fig['n']})")
+          f"{metrics.format_interval(fig.get('interval'))}, frame accuracy "
+          f"{fig['accuracy']:.2%} (n={fig['n']})")
     print("  per class: " + ", ".join(f"{c} {r:.1%}" for c, r in
                                       zip(fig["classes"], fig["recall"], strict=True)))
     acc = np.array(list(fig["per_person"].values()))
@@ -264,8 +250,9 @@ def print_figures(fig: dict) -> None:
     for c, row in zip(fig["classes"], fig["confusion"], strict=True):
         print(f"  {c[:11]:<12}" + "".join(f"{v:>8}" for v in row))
     print(f"unknown poses held out of training (none, or top p < {REJECT_BELOW}): "
-          f"{fig['rejection_overall']:.1%} rejected{_within(fig.get('rejection_interval'))} "
-          f"(n={fig['rejection_n']}); " + ", ".join(
+          f"{fig['rejection_overall']:.1%} rejected"
+          f"{metrics.format_interval(fig.get('rejection_interval'))} (n={fig['rejection_n']}); "
+          + ", ".join(
               f"{p} {r:.1%}" for p, r in fig["rejection"].items()))
     if fig.get("rejection_seen"):
         print(f"  the same poses where other people's took part in training: "

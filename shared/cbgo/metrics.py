@@ -30,18 +30,22 @@ def balanced_accuracy(y_true: np.ndarray, y_pred: np.ndarray, n_classes: int) ->
     return float(np.nanmean(recall))
 
 
-def people_interval(y_true: np.ndarray, y_pred: np.ndarray, people: np.ndarray,
-                    n_classes: int, draws: int = 2000, level: float = 0.95, seed: int = 0
-                    ) -> tuple[float, float]:
+def people_interval(y_true, y_pred, people, draws: int = 2000, level: float = 0.95,
+                    seed: int = 0) -> tuple[float, float]:
     """Returns a bootstrap interval of the balanced accuracy over the people who were scored.
 
     The people are drawn with replacement (each with all of their trials), so the interval
     says how much the figure would move with other people of the same kind: trials of one
     person are not independent of each other, people are. A percentile interval of `draws`
-    resamples, deterministic for a `seed`.
+    resamples, deterministic for a `seed`. Labels may be class indices or names; an answer
+    that is no true class of any trial counts as wrong.
     """
-    y_true, y_pred, people = map(np.asarray, (y_true, y_pred, people))
-    ids, index = np.unique(people, return_inverse=True)
+    n = len(y_true)
+    _, codes = np.unique(np.concatenate([np.asarray(y_true), np.asarray(y_pred)]),
+                         return_inverse=True)
+    n_classes = int(codes.max()) + 1
+    y_true, y_pred = codes[:n], codes[n:]
+    ids, index = np.unique(np.asarray(people), return_inverse=True)
     rows = [np.flatnonzero(index == k) for k in range(len(ids))]
     rng = np.random.default_rng(seed)
     figures = []
@@ -51,6 +55,14 @@ def people_interval(y_true: np.ndarray, y_pred: np.ndarray, people: np.ndarray,
     tail = 50.0 * (1.0 - level)
     lo, hi = np.percentile(figures, [tail, 100.0 - tail])
     return float(lo), float(hi)
+
+
+def format_interval(interval, people: int | None = None) -> str:
+    """Returns " (95 % interval over [the N ]people, bootstrap: lo–hi)", or "" without one."""
+    if not interval:
+        return ""
+    who = f"the {people} people" if people else "people"
+    return f" (95 % interval over {who}, bootstrap: {interval[0]:.1%}–{interval[1]:.1%})"
 
 
 def expected_calibration_error(probs: np.ndarray, y_true: np.ndarray, bins: int = 15) -> float:
