@@ -14,5 +14,6 @@ SHARED_BENCHES = {
              "encode/decode/validate cost per message and latency through a real router"),
     "hands": ("cbgo.bench.hands", "realism of the simulated hand against real Leap recordings"),
     "latency": ("cbgo.bench.latency", "end to end: end condition -> intent -> robot action"),
+    "replay": ("cbgo.bench.replay", "how closely `cbgo replay` keeps a recording's rhythm"),
 }
 BENCHES = {**SHARED_BENCHES, **registry.tools("benches")}
