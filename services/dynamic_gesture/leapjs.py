@@ -12,17 +12,8 @@ is fitted, tuned or selected on it.
 
 Conversion (every assumption written down):
 
-- **Axes and units.** LeapJS positions are mm in the device frame: +x right, +y up (away from
-  the sensor), +z towards the user. That is the contract's Leap frame, so nothing is moved or
-  turned.
-- **Time.** ``timestamp`` is the device clock in µs; ``ts`` is it in seconds from the first
-  frame.
-- **Hands.** ``palmPosition``, ``palmVelocity``, ``palmNormal``, ``direction``, ``wrist``,
-  ``palmWidth``, ``grabStrength``, ``pinchStrength``, ``confidence``, ``type`` (the side) and
-  ``id`` map one to one. Bones come from the hand's pointables (``handId``, ``type`` 0 thumb
-  .. 4 pinky): metacarpal ``carpPosition`` → ``mcpPosition``, proximal → ``pipPosition``,
-  intermediate → ``dipPosition``, distal → ``btipPosition``, each ``width`` wide (the thumb's
-  metacarpal has zero length, as the SDK reports it).
+- **Frames.** As `cbgo.hands.leapjs` converts LeapJS frames (axes, units, time and bones
+  are written down there): nothing is moved or turned.
 - **Labels.** A file ``NAME-TAKE.json`` in a person's folder; ``NAME`` may carry a variant
   after ``#`` (``swipe_left#palm``, ``swipe_up#index``). The swipes map to ours; ``turn_*``
   (a palm turned like a key) is left out of the swipe scores, as SHREC'17's rotations are;
@@ -49,14 +40,13 @@ pass, 12 people: 10 left-hand and 10 right-hand swipes.
 from __future__ import annotations
 
 import json
-import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from cbgo.wire import BONE_TYPES, FINGER_TYPES, SCHEMA_VERSION
+from cbgo.hands.leapjs import to_frames, vector
 
 
 @dataclass(frozen=True)
@@ -76,7 +66,6 @@ NOT_SCORED = ("turn_clockwise", "turn_counter_clockwise")
 # Moves along one direction with another hand shape (an opening hand) or a curved path: no
 # swipe of the set, yet swipe-shaped, so they are reported apart (and kept out of streams).
 SWIPE_LIKE = ("open_hand_", "C_swipe_")
-JOINTS = ("carpPosition", "mcpPosition", "pipPosition", "dipPosition", "btipPosition")
 
 
 @dataclass(frozen=True)
@@ -124,46 +113,6 @@ def read_set(root: Path) -> list[Recording]:
     return out
 
 
-def _vec(value) -> list[float]:
-    out = [float(v) for v in value]
-    if len(out) != 3 or not all(math.isfinite(v) for v in out):
-        raise ValueError(f"expected 3 finite numbers, got {value!r}"[:100])
-    return out
-
-
-def _fingers(pointables: list[dict]) -> list[dict]:
-    by_type = {int(p["type"]): p for p in pointables}
-    fingers = []
-    for index, ftype in enumerate(FINGER_TYPES):
-        p = by_type[index]
-        joints = [_vec(p[k]) for k in JOINTS]
-        width = max(float(p.get("width", 15.0)), 1.0)
-        fingers.append({"type": ftype, "bones": [
-            {"type": btype, "prev_joint": joints[b], "next_joint": joints[b + 1],
-             "width": width} for b, btype in enumerate(BONE_TYPES)]})
-    return fingers
-
-
-def to_hand(hand: dict, pointables: list[dict]) -> dict:
-    """Returns one contract hand from a LeapJS hand and its pointables.
-
-    Raises:
-        KeyError, ValueError: a field is missing or malformed.
-    """
-    own = [p for p in pointables if p.get("handId") == hand["id"]]
-    return {
-        "id": int(hand["id"]),
-        "side": "left" if hand["type"] == "left" else "right",
-        "confidence": min(max(float(hand.get("confidence", 1.0)), 0.0), 1.0),
-        "palm_position": _vec(hand["palmPosition"]),
-        "palm_velocity": _vec(hand["palmVelocity"]),
-        "palm_normal": _vec(hand["palmNormal"]), "direction": _vec(hand["direction"]),
-        "wrist_position": _vec(hand["wrist"]), "palm_width": float(hand["palmWidth"]),
-        "grab_strength": min(max(float(hand["grabStrength"]), 0.0), 1.0),
-        "pinch_strength": min(max(float(hand["pinchStrength"]), 0.0), 1.0),
-        "fingers": _fingers(own)}
-
-
 def left_hand_only(recording: dict) -> dict:
     """Returns a parsed LeapJS recording with its right hands (and their fingers) removed."""
     frames = []
@@ -189,7 +138,7 @@ def swipe_of(recording: dict, rule: SwipeRule = SWIPE_RULE) -> tuple[str, str] |
     for frame in recording["data"]:
         for hand in frame["hands"]:
             tracks.setdefault(hand["type"], []).append(
-                (float(frame["timestamp"]) / 1e6, int(hand["id"]), _vec(hand["palmPosition"])))
+                (float(frame["timestamp"]) / 1e6, int(hand["id"]), vector(hand["palmPosition"])))
     if not tracks:
         return None
     side, track = max(tracks.items(), key=lambda kv: np.ptp([p[0] for _, _, p in kv[1]]))
@@ -263,18 +212,6 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {count} {'swipes' if len(sides) == 2 else 'left-hand swipes'} under "
           f"{args.dst}; cbgo bench dynamic --real {args.dst} --per-class 0")
     return 0
-
-
-def to_frames(recording: dict) -> list[dict]:
-    """Returns a parsed LeapJS recording (``{"data": [frame, ...]}``) as hands/frame messages."""
-    frames = recording["data"]
-    t0 = float(frames[0]["timestamp"]) if frames else 0.0
-    out = []
-    for i, frame in enumerate(frames):
-        hands = [to_hand(h, frame.get("pointables", [])) for h in frame["hands"]]
-        out.append({"v": SCHEMA_VERSION, "ts": (float(frame["timestamp"]) - t0) / 1e6,
-                    "seq": i, "source": "replay", "device": "leapjs", "hands": hands})
-    return out
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ Modules:
 - ``poses``: the 8 static gestures as calibrated mean poses and spreads (``gesture_pose``).
 - ``calibrate``: fits ``poses.json`` to the real recordings (``python -m cbgo.hands.calibrate``).
 - ``data``: the vendored real recordings (``load_real_features``).
+- ``leapjs``: Leap Motion frames in LeapJS's JSON format as contract hands (``to_frames``).
 
 Rule: everything here is pure computation on numpy (torch only for the calibration); nothing
 touches Zenoh. ``cbgo bench hands`` measures how real the simulated hands look.

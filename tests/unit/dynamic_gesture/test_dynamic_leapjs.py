@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from cbgo import keys, wire
+from cbgo.hands import leapjs as hands_leapjs
 from cbgo.services.dynamic_gesture import leapjs, realbench
 from cbgo.services.dynamic_gesture.stroke import Segmenter
 
@@ -23,7 +24,7 @@ def leapjs_hand(palm, hand_id=7, side="right"):
     for finger in range(5):
         base = palm + [-40.0 + 20.0 * finger, 0.0, 40.0]
         joints = {name: (base + [0.0, 0.0, -25.0 * j]).tolist()
-                  for j, name in enumerate(leapjs.JOINTS)}
+                  for j, name in enumerate(hands_leapjs.JOINTS)}
         pointables.append({"handId": hand_id, "type": finger, "width": 17.0, **joints})
     return hand, pointables
 
@@ -155,7 +156,7 @@ def test_a_blended_hand_turns_with_unit_vectors_half_way():
     a, pa = leapjs_hand([0.0, 200.0, 0.0])
     b, pb = leapjs_hand([100.0, 200.0, 0.0])
     b["palmNormal"] = [1.0, 0.0, 0.0]
-    ha, hb = leapjs.to_hand(a, pa), leapjs.to_hand(b, pb)
+    ha, hb = hands_leapjs.to_hand(a, pa), hands_leapjs.to_hand(b, pb)
     mid = realbench.blend_hands(ha, hb, 0.5)
     assert np.allclose(mid["palm_position"], [50.0, 200.0, 0.0])
     assert np.isclose(np.linalg.norm(mid["palm_normal"]), 1.0)
@@ -164,7 +165,7 @@ def test_a_blended_hand_turns_with_unit_vectors_half_way():
 
 def test_a_hand_turned_over_between_recordings_turns_rigidly_at_an_even_rate():
     a, pa = leapjs_hand([0.0, 200.0, 0.0])
-    ha = leapjs.to_hand(a, pa)
+    ha = hands_leapjs.to_hand(a, pa)
     flip = np.diag([-1.0, -1.0, 1.0])  # half a turn about the forward axis: palm up
 
     def flipped(p) -> list[float]:
