@@ -11,7 +11,10 @@ Figures (goals from issue 4 in brackets):
 1b. **Ultraleap's own Gemini-tracked poses** (``ultraleap``: 8 frames of one person, vendored
    from Ultraleap's Unity plugin, the only LMC2-generation skeletons we have): each pose's
    answer as held (fingers up, palm to the user) and turned like the training hands.
-1c. **Your own recorded takes** (``--takes LABEL=FILE.mcap ...``, then nothing else is
+1c. **Guinevere's static poses** (``guinevere``: another Leap Motion and person, evaluation only;
+   when ``python -m cbgo.services.static_gesture.guinevere convert SRC`` has written them to
+   its cache): point, thumbs-up and a relaxed hand (an unknown pose), per take.
+1d. **Your own recorded takes** (``--takes LABEL=FILE.mcap ...``, then nothing else is
    measured): recordings made with ``cbgo record ... hands/frame`` while one pose was held,
    scored per take through the model (``takes``): the frames answered with the take's gesture,
    or, for a label that is no gesture of the model, the frames rejected.
@@ -67,7 +70,15 @@ from cbgo import keys, wire
 from cbgo.errors import RecordingError
 from cbgo.hands.features import hands_features
 from cbgo.metrics import format_confusion
-from cbgo.services.static_gesture import crossval, invariant, mmhgr, takes, train, ultraleap
+from cbgo.services.static_gesture import (
+    crossval,
+    guinevere,
+    invariant,
+    mmhgr,
+    takes,
+    train,
+    ultraleap,
+)
 from cbgo.services.static_gesture.classifier import (
     DEFAULT_SAMPLES,
     NONE,
@@ -347,6 +358,12 @@ def _print(fig: dict) -> None:
     if fig.get("ultraleap"):
         ultraleap.print_scores(fig["ultraleap"])
         print()
+    if fig.get("guinevere") is None:
+        print(f"Guinevere's static takes: not in {guinevere.DEFAULT_DST} (python -m "
+              "cbgo.services.static_gesture.guinevere convert SRC); skipped\n")
+    else:
+        takes.print_figures(fig["guinevere"], m["model"], "Guinevere's static takes")
+        print()
     sim = fig["simulated"]
     _eval_lines("held-out simulated users", sim["renditions"])
     print(_indent(_confusion_text(sim["renditions"])))
@@ -440,6 +457,12 @@ def recipe_of(clf: StaticClassifier) -> train.TrainOptions:
     return train.TrainOptions(**saved)
 
 
+def score_guinevere(clf: StaticClassifier) -> dict | None:
+    """Scores Guinevere's cached takes (`guinevere`); None when the cache holds none."""
+    specs = guinevere.cached_takes()
+    return takes.figures(takes.score_takes(clf, specs)) if specs else None
+
+
 def run_takes(clf: StaticClassifier, specs: list[str], fig: dict, json_path: Path | None
               ) -> int:
     """Scores recorded takes only (`takes`); 2 on a bad argument or file."""
@@ -448,11 +471,8 @@ def run_takes(clf: StaticClassifier, specs: list[str], fig: dict, json_path: Pat
     except (ValueError, RecordingError) as e:
         print(f"cbgo bench static: --takes: {e}")
         return 2
-    takes.print_scores(scores, clf.model_id)
-    fig["takes"] = {"per_take": [{"label": s.label, "path": s.path, "unknown": s.unknown,
-                                  "hands": s.hands, "right": s.right, "skipped": s.skipped,
-                                  "answers": dict(s.answers)} for s in scores],
-                    **takes.summary(scores)}
+    fig["takes"] = takes.figures(scores)
+    takes.print_figures(fig["takes"], clf.model_id)
     if json_path is not None:
         json_path.write_text(json.dumps(fig, indent=2, default=float))
     return 0
@@ -472,6 +492,7 @@ def run(args: argparse.Namespace) -> int:
     if eval_path is not None:
         fig["real"] = real_test(clf, eval_path)
     fig["ultraleap"] = ultraleap.score_poses(clf)
+    fig["guinevere"] = score_guinevere(clf)
     hands, labels = scenario_frames([1000 + args.seed + i for i in range(args.scenario_seeds)])
     fig["simulated"] = simulated(clf, args.per_gesture, args.seed, hands, labels)
     fig["throughput"] = throughput(clf, hands[:args.frames], clf.path or model_path)

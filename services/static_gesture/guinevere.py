@@ -26,9 +26,9 @@ Which poses are scored, as what (`POSES`), and why the others are not:
 
 Frames are converted by `cbgo.hands.leapjs` (axes, units and bones written down there) and
 written as MCAP recordings of ``hands/frame`` (`cbgo.recording`), one per take, named
-``LABEL-POSE-TAKE.mcap``; ``cbgo bench static --takes`` scores them as it scores a user's own
-takes (`takes`). A take whose file is absent from the copy (some public copies lack a few) is
-skipped with a line saying so.
+``LABEL-POSE-TAKE.mcap``; ``cbgo bench static`` scores them when they are in the cache
+(`cached_takes`), as ``--takes`` scores a user's own takes (`takes`). A take missing from
+a copy is not scored; one that cannot be read is skipped with a line saying why.
 
 Example::
 
@@ -134,6 +134,12 @@ def _tracker_line(seen: dict) -> str:
     return (f"{seen['hands']} hands, tracker: grab {seen['grab_strength']:.2f}, pinch "
             f"{seen['pinch_strength']:.2f}, fingers extended (thumb..pinky) {seen['extended']} "
             f"in {seen['extended_share']:.0%}")
+
+
+def cached_takes(directory: Path = DEFAULT_DST) -> list[str]:
+    """Returns the ``LABEL=FILE`` arguments of the takes `convert` wrote there ([] if none)."""
+    paths = sorted(Path(directory).glob("*-*-*.mcap")) if Path(directory).is_dir() else []
+    return [f"{path.name.split('-', 1)[0]}={path}" for path in paths]
 
 
 def main(argv: list[str] | None = None) -> int:

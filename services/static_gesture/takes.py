@@ -135,18 +135,30 @@ def summary(scores: list[TakeScore]) -> dict:
             "hands": sum(s.hands for s in scores), "skipped": sum(s.skipped for s in scores)}
 
 
-def print_scores(scores: list[TakeScore], model_id: str) -> None:
-    """Prints one line per take and the pooled figures."""
-    print(f"recorded takes, model {model_id} (right: the take's gesture with p ≥ {REJECT_BELOW}"
+def figures(scores: list[TakeScore]) -> dict:
+    """Returns scored takes as plain data (JSON-safe): each take, then the pooled `summary`."""
+    return {"per_take": [{"label": s.label, "path": s.path, "unknown": s.unknown,
+                          "hands": s.hands, "right": s.right, "skipped": s.skipped,
+                          "answers": dict(s.answers.most_common()),
+                          "median_top_p": float(np.median(s.top_p)) if s.top_p else None}
+                         for s in scores],
+            **summary(scores)}
+
+
+def print_figures(fig: dict, model_id: str, title: str = "recorded takes") -> None:
+    """Prints `figures`: one line per take and the pooled figures."""
+    print(f"{title}, model {model_id} (right: the take's gesture with p ≥ {REJECT_BELOW}"
           f"; for a pose that is no gesture, rejected):")
-    for s in scores:
-        what = "unknown pose, rejected" if s.unknown else "right"
-        answers = ", ".join(f"{name} {count}" for name, count in s.answers.most_common(4))
-        median = f"; median top p {np.median(s.top_p):.2f}" if s.top_p else ""
-        skipped = f"; {s.skipped} skipped (broke the contract)" if s.skipped else ""
-        print(f"  {s.label:10} {s.path}: {s.hands} hands, {what} {s.share:.1%} "
+    for take in fig["per_take"]:
+        what = "unknown pose, rejected" if take["unknown"] else "right"
+        share = take["right"] / take["hands"] if take["hands"] else float("nan")
+        answers = ", ".join(f"{name} {count}" for name, count in
+                            list(take["answers"].items())[:4])
+        median = (f"; median top p {take['median_top_p']:.2f}"
+                  if take["median_top_p"] is not None else "")
+        skipped = f"; {take['skipped']} skipped (broke the contract)" if take["skipped"] else ""
+        print(f"  {take['label']:10} {take['path']}: {take['hands']} hands, {what} {share:.1%} "
               f"(answers: {answers or 'none'}{median}){skipped}")
-    fig = summary(scores)
     for key, text in (("known", "known gestures, frames right"),
                       ("unknown_rejected", "unknown poses, frames rejected")):
         if fig[key] is not None:

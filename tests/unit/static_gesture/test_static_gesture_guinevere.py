@@ -90,3 +90,21 @@ def test_the_tracker_view_of_a_take_is_its_median_strengths_and_usual_finger_fla
 def test_a_folder_without_takes_is_a_clear_error(tmp_path, capsys):
     assert guinevere.main(["convert", str(tmp_path)]) == 2
     assert "no LeapJS takes" in capsys.readouterr().err
+
+
+def test_the_cache_gives_back_the_takes_convert_wrote(guinevere_set, tmp_path):
+    written = guinevere.convert(guinevere_set, tmp_path / "takes")
+    assert sorted(guinevere.cached_takes(tmp_path / "takes")) == sorted(written)
+    assert guinevere.cached_takes(tmp_path / "nothing-here") == []
+
+
+def test_scored_takes_print_from_plain_figures(guinevere_set, tmp_path, capsys):
+    specs = guinevere.convert(guinevere_set, tmp_path / "takes")
+    fig = takes.figures(takes.score_takes(StaticClassifier.load(default_model_path(), samples=8),
+                                          specs))
+    json.dumps(fig)  # plain data: the bench's --json holds it
+    capsys.readouterr()
+    takes.print_figures(fig, "static-bnn-x", "Guinevere's static takes")
+    printed = capsys.readouterr().out
+    assert printed.startswith("Guinevere's static takes, model static-bnn-x")
+    assert "thumbsup" in printed and "known gestures, frames right: 100.0%" in printed
