@@ -43,6 +43,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -114,7 +115,8 @@ def convert(src: Path, dst: Path) -> list[str]:
             continue
         try:
             recording = json.loads(path.read_text())
-            frames = to_frames(recording)
+            rejected: Counter = Counter()
+            frames = to_frames(recording, rejected)
             seen = _tracker_line(describe(recording))
         except (OSError, ValueError, KeyError, TypeError) as e:
             print(f"  {path.name}: skipped, unreadable ({type(e).__name__}: {e})"[:200])
@@ -123,7 +125,9 @@ def convert(src: Path, dst: Path) -> list[str]:
             print(f"  {path.name}: left out, not the paper's {pose}; {seen}")
             continue
         out = dst / f"{POSES[pose]}-{pose}-{take}.mcap"
-        print(f"  {path.name} → {out.name}: {write_take(frames, out)} frames; {seen}")
+        bad = (f"; left out as unreadable: {', '.join(f'{n} {why}' for why, n in rejected.items())}"
+               if rejected else "")
+        print(f"  {path.name} → {out.name}: {write_take(frames, out)} frames; {seen}{bad}")
         specs.append(f"{POSES[pose]}={out}")
     return specs
 

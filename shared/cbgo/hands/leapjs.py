@@ -23,6 +23,7 @@ static-gesture's (`cbgo.services.static_gesture.guinevere`).
 from __future__ import annotations
 
 import math
+from collections import Counter
 
 from cbgo.wire import BONE_TYPES, FINGER_TYPES, SCHEMA_VERSION
 
@@ -75,13 +76,44 @@ def to_hand(hand: dict, pointables: list[dict]) -> dict:
         "fingers": _fingers(own)}
 
 
-def to_frames(recording: dict) -> list[dict]:
-    """Returns a parsed LeapJS recording (``{"data": [frame, ...]}``) as hands/frame messages."""
-    frames = recording["data"]
-    t0 = float(frames[0]["timestamp"]) if frames else 0.0
+def to_frames(recording: dict, rejected: Counter | None = None) -> list[dict]:
+    """Returns a parsed LeapJS recording (``{"data": [frame, ...]}``) as hands/frame messages.
+
+    A hand that cannot be converted (a field missing or malformed, a finger without its
+    pointable) is left out of its frame, each counted in ``rejected`` by reason when given: one
+    bad hand does not cost a recording. A frame left with no hand although the sensor saw one
+    is left out too (it would read as the hand gone), as is a frame without a usable timestamp.
+
+    Raises:
+        KeyError, TypeError: the recording has no ``data`` list.
+    """
+    frames = [f for f in recording["data"] if _timestamp(f, rejected) is not None]
+    t0 = _timestamp(frames[0]) if frames else 0.0
     out = []
-    for i, frame in enumerate(frames):
-        hands = [to_hand(h, frame.get("pointables", [])) for h in frame["hands"]]
-        out.append({"v": SCHEMA_VERSION, "ts": (float(frame["timestamp"]) - t0) / 1e6,
-                    "seq": i, "source": "replay", "device": "leapjs", "hands": hands})
+    for frame in frames:
+        seen = frame.get("hands") or []
+        hands = []
+        for hand in seen:
+            try:
+                hands.append(to_hand(hand, frame.get("pointables") or []))
+            except (KeyError, ValueError, TypeError, AttributeError) as e:
+                if rejected is not None:
+                    rejected[f"hand: {type(e).__name__} {e}"[:80]] += 1
+        if seen and not hands:
+            continue
+        out.append({"v": SCHEMA_VERSION, "ts": (_timestamp(frame) - t0) / 1e6,
+                    "seq": len(out), "source": "replay", "device": "leapjs", "hands": hands})
     return out
+
+
+def _timestamp(frame, rejected: Counter | None = None) -> float | None:
+    """A frame's device time in µs, or None (counted) when it has none."""
+    try:
+        t = float(frame["timestamp"])
+    except (KeyError, TypeError, ValueError):
+        t = math.nan
+    if math.isfinite(t):
+        return t
+    if rejected is not None:
+        rejected["frame without a timestamp"] += 1
+    return None

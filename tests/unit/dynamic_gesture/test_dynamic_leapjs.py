@@ -244,3 +244,21 @@ def test_the_swipes_of_leapmotion_all_become_a_set(tmp_path):
 def test_a_folder_without_leapmotion_all_recordings_is_named(tmp_path, capsys):
     assert leapjs.main(["swipes", str(tmp_path), str(tmp_path / "both")]) == 2
     assert "participant-" in capsys.readouterr().err
+
+
+def test_a_bad_hand_or_frame_is_left_out_and_counted_not_the_recording():
+    """A frame whose only hand cannot be read is dropped, not published as no hand."""
+    from collections import Counter
+
+    rec = recording(swipe_palms(n=20))
+    del rec["data"][3]["pointables"][2]  # hand without its middle finger
+    rec["data"][5]["hands"][0]["palmNormal"] = [0.0, float("nan"), 1.0]
+    del rec["data"][7]["timestamp"]
+    rejected = Counter()
+    frames = hands_leapjs.to_frames(rec, rejected)
+    assert len(frames) == len(rec["data"]) - 3  # its only hand unreadable: not "hand gone"
+    assert all(len(f["hands"]) == 1 for f in frames)
+    assert [f["seq"] for f in frames] == list(range(len(frames)))
+    assert sum(rejected.values()) == 3 and rejected["frame without a timestamp"] == 1
+    for msg in frames:  # what is left still fits the contract
+        wire.validate(msg, wire.schema_for(keys.HANDS_FRAME.suffix))

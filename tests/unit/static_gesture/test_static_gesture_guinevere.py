@@ -108,3 +108,14 @@ def test_scored_takes_print_from_plain_figures(guinevere_set, tmp_path, capsys):
     printed = capsys.readouterr().out
     assert printed.startswith("Guinevere's static takes, model static-bnn-x")
     assert "thumbsup" in printed and "known gestures, frames right: 100.0%" in printed
+
+
+def test_an_unreadable_hand_is_left_out_and_said(guinevere_set, tmp_path, capsys):
+    path = guinevere_set / "thumb" / "01" / "thumb-2.json"
+    take = json.loads(path.read_text())
+    del take["data"][4]["pointables"][0]  # the thumb's pointable
+    path.write_text(json.dumps(take))
+    guinevere.convert(guinevere_set, tmp_path / "takes")
+    line = next(x for x in capsys.readouterr().out.splitlines() if "thumb-2.json" in x)
+    assert "thumbsup-thumb-2.mcap: 9 frames" in line
+    assert "left out as unreadable: 1 hand: KeyError" in line
