@@ -79,14 +79,21 @@ def recordings(src: Path) -> list[tuple[str, int, Path]]:
 
 
 def describe(recording: dict) -> dict:
-    """Returns the tracker's own view of a take: median strengths and the usual finger flags."""
+    """Returns the tracker's own view of a take: median strengths and the usual finger flags.
+
+    Hands without those values are passed over (`to_frames` counts the unreadable ones).
+    """
     grab, pinch, flags = [], [], {}
     for frame in recording["data"]:
-        for hand in frame["hands"]:
-            grab.append(float(hand["grabStrength"]))
-            pinch.append(float(hand["pinchStrength"]))
-            own = sorted((p for p in frame.get("pointables", []) if p.get("handId") == hand["id"]),
-                         key=lambda p: p["type"])
+        for hand in frame.get("hands") or []:
+            try:
+                strengths = float(hand["grabStrength"]), float(hand["pinchStrength"])
+                own = sorted((p for p in frame.get("pointables") or []
+                              if p.get("handId") == hand["id"]), key=lambda p: p["type"])
+            except (KeyError, TypeError, ValueError):
+                continue
+            grab.append(strengths[0])
+            pinch.append(strengths[1])
             pattern = "".join("1" if p.get("extended") else "0" for p in own)
             flags[pattern] = flags.get(pattern, 0) + 1
     common = max(flags, key=flags.get) if flags else ""
