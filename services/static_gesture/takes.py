@@ -138,8 +138,8 @@ def summary(scores: list[TakeScore]) -> dict:
 def figures(scores: list[TakeScore]) -> dict:
     """Returns scored takes as plain data (JSON-safe): each take, then the pooled `summary`."""
     return {"per_take": [{"label": s.label, "path": s.path, "unknown": s.unknown,
-                          "hands": s.hands, "right": s.right, "skipped": s.skipped,
-                          "answers": dict(s.answers.most_common()),
+                          "hands": s.hands, "right": s.right, "share": s.share,
+                          "skipped": s.skipped, "answers": dict(s.answers.most_common()),
                           "median_top_p": float(np.median(s.top_p)) if s.top_p else None}
                          for s in scores],
             **summary(scores)}
@@ -151,14 +151,13 @@ def print_figures(fig: dict, model_id: str, title: str = "recorded takes") -> No
           f"; for a pose that is no gesture, rejected):")
     for take in fig["per_take"]:
         what = "unknown pose, rejected" if take["unknown"] else "right"
-        share = take["right"] / take["hands"] if take["hands"] else float("nan")
         answers = ", ".join(f"{name} {count}" for name, count in
                             list(take["answers"].items())[:4])
         median = (f"; median top p {take['median_top_p']:.2f}"
                   if take["median_top_p"] is not None else "")
         skipped = f"; {take['skipped']} skipped (broke the contract)" if take["skipped"] else ""
-        print(f"  {take['label']:10} {take['path']}: {take['hands']} hands, {what} {share:.1%} "
-              f"(answers: {answers or 'none'}{median}){skipped}")
+        print(f"  {take['label']:10} {take['path']}: {take['hands']} hands, {what} "
+              f"{take['share']:.1%} (answers: {answers or 'none'}{median}){skipped}")
     for key, text in (("known", "known gestures, frames right"),
                       ("unknown_rejected", "unknown poses, frames rejected")):
         if fig[key] is not None:

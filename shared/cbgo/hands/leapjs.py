@@ -87,10 +87,10 @@ def to_frames(recording: dict, rejected: Counter | None = None) -> list[dict]:
     Raises:
         KeyError, TypeError: the recording has no ``data`` list.
     """
-    frames = [f for f in recording["data"] if _timestamp(f, rejected) is not None]
-    t0 = _timestamp(frames[0]) if frames else 0.0
+    stamped = [(t, f) for f in recording["data"] if (t := _timestamp(f, rejected)) is not None]
+    t0 = stamped[0][0] if stamped else 0.0
     out = []
-    for frame in frames:
+    for t, frame in stamped:
         seen = frame.get("hands") or []
         hands = []
         for hand in seen:
@@ -101,7 +101,7 @@ def to_frames(recording: dict, rejected: Counter | None = None) -> list[dict]:
                     rejected[f"hand: {type(e).__name__} {e}"[:80]] += 1
         if seen and not hands:
             continue
-        out.append({"v": SCHEMA_VERSION, "ts": (_timestamp(frame) - t0) / 1e6,
+        out.append({"v": SCHEMA_VERSION, "ts": (t - t0) / 1e6,
                     "seq": len(out), "source": "replay", "device": "leapjs", "hands": hands})
     return out
 
