@@ -2,8 +2,9 @@
 
 Rules (the model files are written by ``cbgo.services.static_gesture.train``):
 
-- A model is a ``cbgo.bayes`` mean-field Bayesian MLP saved as ``<base>.pt`` (state_dict) plus
-  ``<base>.json`` (metadata). The metadata names everything needed to use it — the gesture
+- A model is a ``cbgo.bayes`` deep ensemble of mean-field Bayesian MLPs (`bayes.BayesEnsemble`,
+  ``members`` in the metadata; a file without it, written before ensembles, holds one
+  `bayes.BayesMLP`) saved as ``<base>.pt`` (state_dict) plus ``<base>.json`` (metadata). The metadata names everything needed to use it — the gesture
   ``names`` (output order, possibly with the no-gesture class ``none``), the ``inputs`` (which of
   the 57 features feed the network), the ``standardizer``, the ``feature_version`` — and pins
   the weights by their SHA-256 (``weights_sha256``, over the tensors, not the file). Loading
@@ -24,16 +25,20 @@ Rules (the model files are written by ``cbgo.services.static_gesture.train``):
   ``invariant.bends``), and
   ``inputs`` index those; absent or null, ``inputs`` index the 57 themselves (models trained
   before it).
-- Posterior averaging: at load, ``samples`` weight sets are drawn from the variational
-  posterior q(w) (seeded by the weights' hash, so the same model gives the same draws) and kept
-  as stacked numpy arrays; a prediction is the mean of the softmax over those networks. Fixed
+- Posterior averaging: at load, ``samples`` weight sets in all, shared out evenly among the
+  members, are drawn from each member's variational posterior q(w) (seeded by the weights'
+  hash, so the same model gives the same draws) and kept as stacked numpy arrays; a member's
+  prediction is the mean of the softmax over its draws, and the model's the mean of its
+  members'. Fixed
   draws make a frame's probabilities reproducible (the same hand twice gives the same vector)
   and keep the per-frame cost to a few matrix products (tens of µs for 32 draws on one frame;
   ``cbgo bench static`` prints the network's share) instead of torch's per-call overhead.
   Every row is renormalised in float64 so that it sums to 1 to rounding.
 - Open set (optional, ``open_set`` in the metadata, written by the trainer for a model with
-  ``none``): a frame far, in the hidden layer, from every training gesture has its gestures'
-  probabilities faded into ``none`` (`openset`). A malformed ``open_set`` refuses the model.
+  ``none``: one rule per member, a list, or a single rule for a one-network model): a frame
+  far, in a member's hidden layer, from every training gesture has that member's gestures'
+  probabilities faded into ``none`` (`openset`), before the members are averaged. A malformed
+  ``open_set`` refuses the model.
 - Nothing here touches Zenoh; the service (``main``) wires it to the bus.
 """
 
@@ -190,6 +195,21 @@ class Posterior:
 
 
 @dataclass
+class Member:
+    """One network of a model's ensemble: its posterior draws and its open-set rule."""
+
+    posterior: Posterior
+    open_set: OpenSet | None = None
+
+    def predict(self, inputs: np.ndarray, none_index: int, open_set: bool = True) -> np.ndarray:
+        """Returns (N, C) probabilities for network inputs, far frames faded into ``none``."""
+        probs = self.posterior.predict(inputs)
+        if open_set and self.open_set is not None:
+            probs = self.open_set.apply(probs, self.posterior.embed(inputs), none_index)
+        return probs
+
+
+@dataclass
 class StaticClassifier:
     """A loaded static-gesture model, ready to classify hands.
 
@@ -197,28 +217,26 @@ class StaticClassifier:
         names: gesture names in output order.
         model_id: ``static-bnn-<hash8>``.
         metadata: the model's JSON metadata.
+        members: the ensemble's networks, each with its draws and open-set rule (`Member`).
         path: the base path it was loaded from (None when built in memory).
-        samples: posterior draws averaged per prediction.
-        open_set: the open-set rule applied to every prediction (`openset`), from the
-            metadata's ``open_set``; None for a model without one or without ``none``.
+        samples: posterior draws averaged per prediction, all members together.
     """
 
     names: list[str]
     model_id: str
     metadata: dict
-    posterior: Posterior = field(repr=False)
+    members: list[Member] = field(repr=False)
     inputs: np.ndarray = field(repr=False)
     mean: np.ndarray = field(repr=False)
     std: np.ndarray = field(repr=False)
     path: Path | None = None
     samples: int = DEFAULT_SAMPLES
     transform: str | None = None
-    open_set: OpenSet | None = field(default=None, repr=False)
 
     @classmethod
-    def from_model(cls, model: bayes.BayesMLP, metadata: dict, samples: int = DEFAULT_SAMPLES,
-                   path: Path | None = None) -> StaticClassifier:
-        """Builds a classifier from a network and its metadata (checked).
+    def from_model(cls, model: bayes.BayesEnsemble | bayes.BayesMLP, metadata: dict,
+                   samples: int = DEFAULT_SAMPLES, path: Path | None = None) -> StaticClassifier:
+        """Builds a classifier from an ensemble (or one network) and its metadata (checked).
 
         Raises:
             ConfigError: the metadata is incomplete or does not fit the network.
@@ -226,21 +244,18 @@ class StaticClassifier:
         check_metadata(metadata, model.arch)
         if samples < 1:
             raise ConfigError(f"samples must be at least 1, got {samples}")
+        networks = list(model.members) if isinstance(model, bayes.BayesEnsemble) else [model]
+        open_sets = _open_sets(metadata, len(networks), bayes.layer_sizes(model.arch)[1])
         sha = metadata["weights_sha256"]
-        open_set = None
-        if metadata.get("open_set") is not None and NONE in metadata["names"]:
-            try:
-                open_set = OpenSet.from_dict(metadata["open_set"], bayes.layer_sizes(model.arch)[1])
-            except (KeyError, TypeError, ValueError) as e:
-                raise ConfigError(f"model open_set is malformed ({type(e).__name__}: {e}); "
-                                  "retrain with `cbgo train static`") from None
+        per_member = -(-samples // len(networks))
+        members = [Member(Posterior.draw(net, per_member, int(sha[:8], 16) + i), rule)
+                   for i, (net, rule) in enumerate(zip(networks, open_sets, strict=True))]
         return cls(names=list(metadata["names"]), model_id=model_id_of(sha), metadata=metadata,
-                   posterior=Posterior.draw(model, samples, int(sha[:8], 16)),
-                   inputs=np.asarray(metadata["inputs"], dtype=np.int64),
+                   members=members, inputs=np.asarray(metadata["inputs"], dtype=np.int64),
                    transform=metadata.get("transform"),
                    mean=np.asarray(metadata["standardizer"]["mean"], dtype=np.float64),
                    std=np.asarray(metadata["standardizer"]["std"], dtype=np.float64),
-                   path=path, samples=samples, open_set=open_set)
+                   path=path, samples=samples)
 
     @classmethod
     def load(cls, path: str | Path, samples: int = DEFAULT_SAMPLES) -> StaticClassifier:
@@ -252,37 +267,34 @@ class StaticClassifier:
         """
         pt, js = model_files(path)
         try:
-            loaded = bayes.load(pt)
+            model, meta = bayes.load_module(pt, build_network)
         except (pickle.UnpicklingError, EOFError, ValueError, TypeError, KeyError) as e:
-            # bayes.load names missing files and misfits; a garbled file fails deeper.
+            # load_module names missing files and misfits; a garbled file fails deeper.
             raise ConfigError(f"cannot load model {pt.with_suffix('')}: {type(e).__name__}: "
                               f"{str(e).splitlines()[0] if str(e) else ''}") from None
-        meta = loaded.metadata
         if meta.get("kind") != KIND:
             raise ConfigError(f"{js} is not a {KIND} model (kind {meta.get('kind')!r})")
-        if meta.get("weights_sha256") != weights_sha256(loaded.model.state_dict()):
+        if meta.get("weights_sha256") != weights_sha256(model.state_dict()):
             raise ConfigError(f"{pt} is not the weights file {js} was written with (SHA-256 "
                               "mismatch; being rewritten? retrain with `cbgo train static`)")
         try:
-            return cls.from_model(loaded.model, meta, samples, pt.with_suffix(""))
+            return cls.from_model(model, meta, samples, pt.with_suffix(""))
         except (TypeError, ValueError, KeyError, AttributeError) as e:
             raise ConfigError(f"{js}: malformed metadata ({type(e).__name__}: {e})") from None
 
     def predict_features(self, features: np.ndarray, open_set: bool = True) -> np.ndarray:
         """Returns (N, C) probabilities for (N, 57) features (already on the recorded side).
 
-        With the model's open-set rule applied, unless ``open_set`` is False (the network's
-        own answer, for benches that show what the rule adds).
+        The members' answers averaged, each with its open-set rule applied unless ``open_set``
+        is False (the networks' own answer, for benches that show what the rule adds).
         """
         x = np.atleast_2d(np.asarray(features, dtype=np.float64))
         if len(x) == 0:
             return np.zeros((0, len(self.names)))
         inputs = self.network_inputs(x)
-        probs = self.posterior.predict(inputs)
-        if open_set and self.open_set is not None:
-            probs = self.open_set.apply(probs, self.posterior.embed(inputs),
-                                        self.names.index(NONE))
-        return probs
+        none_index = self.names.index(NONE) if NONE in self.names else -1
+        probs = np.mean([m.predict(inputs, none_index, open_set) for m in self.members], axis=0)
+        return probs / probs.sum(-1, keepdims=True)
 
     def network_inputs(self, features: np.ndarray) -> np.ndarray:
         """Returns what the network reads for (N, 57) features: derived, selected, standardised."""
@@ -300,12 +312,41 @@ class StaticClassifier:
     def describe(self) -> dict:
         """Returns what status replies show about the model."""
         return {"model": self.model_id, "path": str(self.path) if self.path else None,
-                "names": self.names, "samples": self.samples,
+                "names": self.names, "samples": self.samples, "members": len(self.members),
                 "trained_at": self.metadata.get("trained_at"),
                 "data_hash": self.metadata.get("data_hash"),
-                "open_set": None if self.open_set is None else {
-                    "neighbours": self.open_set.neighbours, "alpha": self.open_set.alpha,
-                    "threshold": round(self.open_set.threshold, 4)}}
+                "open_set": None if self.members[0].open_set is None else {
+                    "neighbours": self.members[0].open_set.neighbours,
+                    "alpha": self.members[0].open_set.alpha,
+                    "thresholds": [round(m.open_set.threshold, 4) for m in self.members]}}
+
+
+def build_network(meta: dict) -> bayes.BayesEnsemble | bayes.BayesMLP:
+    """Returns the untrained network a model's metadata describes (for `bayes.load_module`)."""
+    arch = bayes.Architecture(**meta["architecture"])
+    if "members" not in meta:  # written before ensembles: one network
+        return bayes.BayesMLP(arch)
+    return bayes.BayesEnsemble(arch, int(meta["members"]))
+
+
+def _open_sets(meta: dict, members: int, width: int) -> list[OpenSet | None]:
+    """Returns each member's open-set rule from the metadata (None each: the model has none).
+
+    Raises:
+        ConfigError: malformed, or not one rule per member.
+    """
+    stored = meta.get("open_set")
+    if stored is None or NONE not in meta["names"]:
+        return [None] * members
+    rules = stored if isinstance(stored, list) else [stored]
+    if len(rules) != members:
+        raise ConfigError(f"model open_set holds {len(rules)} rules for {members} networks; "
+                          "retrain with `cbgo train static`")
+    try:
+        return [OpenSet.from_dict(rule, width) for rule in rules]
+    except (KeyError, TypeError, ValueError) as e:
+        raise ConfigError(f"model open_set is malformed ({type(e).__name__}: {e}); "
+                          "retrain with `cbgo train static`") from None
 
 
 REQUIRED_METADATA = ("kind", "names", "inputs", "standardizer", "feature_version",

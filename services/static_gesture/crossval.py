@@ -87,10 +87,10 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
     for k, people in enumerate(groups):
         trained_on, held_out = POSE_HALVES[k % 2], POSE_HALVES[1 - k % 2]
         test = np.isin(frames.user, people)
-        data = train.build_dataset(options, real, user=[], frames=frames.subset(~test),
-                                   unknown=trained_on)
-        clf = train.classifier_of(train.fit(data, replace(options, seed=options.seed + k)),
-                                  samples)
+        fold_options = replace(options, seed=options.seed + k)
+        data = train.build_datasets(fold_options, real, user=[], frames=frames.subset(~test),
+                                    unknown=trained_on)
+        clf = train.classifier_of(train.fit(data, fold_options), samples)
         sub = frames.subset(test)
         x_test = mmhgr.features57(sub)
         probs = clf.predict_features(x_test)

@@ -47,7 +47,7 @@ class StaticGestureSettings:
     model: str | None = field(default=None, metadata=_help(model_help(
         "model base path (.pt + .json)", "models/static-gesture", "one")))
     samples: int = field(default=DEFAULT_SAMPLES, metadata=_help(
-        "posterior samples averaged per prediction"))
+        "posterior samples averaged per prediction, all the ensemble's networks together"))
     watch_s: float = field(default=1.0, metadata=_help(WATCH_HELP))
 
     def __post_init__(self):

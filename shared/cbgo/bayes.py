@@ -198,6 +198,38 @@ class BayesMLP(nn.Module):
         return sum(layer.kl() for layer in self.layers)
 
 
+class BayesEnsemble(nn.Module):
+    """Bayesian networks of one architecture trained apart: a deep ensemble.
+
+    Each member is a `BayesMLP` trained from its own initialisation on its own draw of the data;
+    a prediction averages theirs. Why several: one network's boundaries between nearby classes
+    depend on its seed (Lakshminarayanan et al., "Simple and scalable predictive uncertainty
+    estimation using deep ensembles", NeurIPS 2017); a mean-field posterior stays near one
+    mode and does not average that out.
+
+    Args:
+        arch: every member's architecture.
+        members: how many.
+    """
+
+    def __init__(self, arch: Architecture, members: int):
+        super().__init__()
+        if members < 1:
+            raise ConfigError(f"an ensemble needs at least one member, got {members}")
+        self.arch = arch
+        self.members = nn.ModuleList(BayesMLP(arch) for _ in range(members))
+
+    @classmethod
+    def of(cls, members: Sequence[BayesMLP]) -> BayesEnsemble:
+        """Returns an ensemble holding these trained networks (one architecture)."""
+        arch = members[0].arch
+        if any(m.arch != arch for m in members):
+            raise ConfigError("ensemble members must share one architecture")
+        ensemble = cls(arch, len(members))
+        ensemble.members = nn.ModuleList(members)
+        return ensemble
+
+
 @dataclass
 class TrainConfig:
     """Settings of variational training."""

@@ -45,9 +45,9 @@ def test_faded_probabilities_stay_a_distribution_and_near_frames_keep_theirs():
 @pytest.fixture(scope="module")
 def small_model():
     options = train.TrainOptions(per_gesture=30, none=30, off_vocabulary=30, hidden=[8],
-                                 epochs=2, mmhgr=False, user_gestures=False)
-    data = train.build_dataset(options, user=[])
-    return train.fit(data, options), data
+                                 epochs=2, mmhgr=False, user_gestures=False, members=2)
+    data = train.build_datasets(options, user=[])
+    return train.fit(data, options), data[0]
 
 
 def test_frames_far_from_every_training_gesture_are_none_training_ones_keep_their_answer(
@@ -70,12 +70,23 @@ def test_the_rule_travels_with_the_model_and_a_broken_one_is_refused(small_model
     train.save_model(tmp_path / "m", trained)
     loaded = StaticClassifier.load(tmp_path / "m", samples=4)
     fresh = train.classifier_of(trained, samples=4)
-    assert loaded.open_set.reference.shape == (len(fresh.open_set.reference), 8)
+    assert [m.open_set.reference.shape for m in loaded.members] == [
+        (len(m.open_set.reference), 8) for m in fresh.members]
     assert loaded.predict_features(data.x[:50]) == pytest.approx(
         fresh.predict_features(data.x[:50]), abs=1e-6)
-    assert loaded.describe()["open_set"]["threshold"] > 0
+    assert all(t > 0 for t in loaded.describe()["open_set"]["thresholds"])
     meta = json.loads((tmp_path / "m.json").read_text())
-    meta["open_set"]["reference"]["shape"] = [3, 8]
+    meta["open_set"][1]["reference"]["shape"] = [3, 8]
     (tmp_path / "m.json").write_text(json.dumps(meta))
     with pytest.raises(ConfigError, match="open_set"):
+        StaticClassifier.load(tmp_path / "m")
+
+
+def test_each_member_needs_its_own_rule(small_model, tmp_path):
+    trained, _ = small_model
+    train.save_model(tmp_path / "m", trained)
+    meta = json.loads((tmp_path / "m.json").read_text())
+    meta["open_set"] = meta["open_set"][:1]
+    (tmp_path / "m.json").write_text(json.dumps(meta))
+    with pytest.raises(ConfigError, match="1 rules for 2 networks"):
         StaticClassifier.load(tmp_path / "m")

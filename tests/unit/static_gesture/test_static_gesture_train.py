@@ -151,3 +151,52 @@ def test_the_same_training_gives_the_same_model_id_wherever_it_is_saved(tmp_path
     ids = [train.save_model(tmp_path / name, train.fit(
         train.build_dataset(options, small_real(), user=[]), options))[2] for name in "ab"]
     assert ids[0] == ids[1]
+
+
+def test_ensemble_members_see_the_same_recordings_but_their_own_simulated_hands():
+    options = train.TrainOptions(per_gesture=3, none=6, off_vocabulary=6, members=3)
+    datasets = train.build_datasets(options, small_real(), user=[])
+    one = train.build_dataset(options, small_real(), user=[])
+    assert len(datasets) == 3 and np.array_equal(datasets[0].x, one.x)
+    recorded = [d.x[d.source == "real"][:240] for d in datasets]  # then their varied copies
+    simulated = [d.x[d.source == "simulated"] for d in datasets]
+    assert all(np.array_equal(small_real()[0], r) for r in recorded)
+    assert not np.allclose(simulated[0], simulated[1])
+    assert not np.allclose(simulated[1], simulated[2])
+
+
+def test_an_ensemble_averages_networks_that_disagree(tmp_path):
+    options = train.TrainOptions(per_gesture=10, none=10, off_vocabulary=10, hidden=[8],
+                                 epochs=3, members=2)
+    trained = train.fit(train.build_datasets(options, small_real(), user=[]), options)
+    assert len(trained.model.members) == 2 and trained.metadata["members"] == 2
+    clf = train.classifier_of(trained, samples=8)
+    assert [len(m.posterior.weights[0]) for m in clf.members] == [4, 4]  # 8 draws in all
+    x = small_real()[0]
+    each = [m.predict(clf.network_inputs(x), clf.names.index("none")) for m in clf.members]
+    assert np.abs(each[0] - each[1]).max() > 0.05  # their own seeds and data
+    assert clf.predict_features(x) == pytest.approx(np.mean(each, axis=0))
+    _, _, model_id = train.save_model(tmp_path / "m", trained)
+    loaded = StaticClassifier.load(tmp_path / "m", samples=8)
+    assert loaded.model_id == model_id and loaded.describe()["members"] == 2
+
+
+def test_a_model_of_one_network_written_before_ensembles_still_loads(tmp_path):
+    from cbgo import bayes
+    from cbgo.services.static_gesture.classifier import weights_sha256
+
+    options = train.TrainOptions(per_gesture=5, none=5, off_vocabulary=5, hidden=[4],
+                                 epochs=1, members=1)
+    trained = train.fit(train.build_datasets(options, small_real(), user=[]), options)
+    network = trained.model.members[0]
+    meta = json.loads(json.dumps(trained.metadata, default=train._plain))
+    del meta["members"]
+    meta["open_set"] = meta["open_set"][0]  # one rule, not a list, as they were written
+    meta["weights_sha256"] = weights_sha256(network.state_dict())
+    bayes.save(tmp_path / "old", network, meta)
+    old = StaticClassifier.load(tmp_path / "old", samples=4)
+    fresh = StaticClassifier.from_model(network, meta, samples=4)  # draws seeded by its hash
+    x = small_real(20)[0]
+    assert len(old.members) == 1 and old.members[0].open_set is not None
+    assert old.model_id == "static-bnn-" + meta["weights_sha256"][:8]
+    assert old.predict_features(x) == pytest.approx(fresh.predict_features(x), abs=1e-9)
