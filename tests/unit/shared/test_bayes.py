@@ -118,3 +118,27 @@ def test_loading_a_broken_model_names_the_problem(tmp_path):
     torch.save({}, tmp_path / "m.pt")
     with pytest.raises(ConfigError, match="is not a cbgo-bnn/1 model"):
         bayes.load(tmp_path / "m")
+
+
+def test_an_ensemble_saves_its_members_and_loads_them_back(tmp_path):
+    arch = bayes.Architecture(3, [4], 2)
+    members = []
+    for seed in (1, 2):
+        torch.manual_seed(seed)
+        members.append(bayes.BayesMLP(arch))
+    ensemble = bayes.BayesEnsemble.of(members)
+    bayes.save(tmp_path / "e", ensemble, {"members": 2})
+    loaded, meta = bayes.load_module(
+        tmp_path / "e", lambda m: bayes.BayesEnsemble(bayes.Architecture(**m["architecture"]),
+                                                      m["members"]))
+    for kept, back in zip(members, loaded.members, strict=True):
+        assert torch.equal(kept.layers[0].w_mu, back.layers[0].w_mu)
+    assert not torch.equal(loaded.members[0].layers[0].w_mu, loaded.members[1].layers[0].w_mu)
+
+
+def test_an_ensemble_refuses_no_members_and_mixed_architectures():
+    with pytest.raises(ConfigError, match="at least one member"):
+        bayes.BayesEnsemble(bayes.Architecture(3, [4], 2), 0)
+    with pytest.raises(ConfigError, match="one architecture"):
+        bayes.BayesEnsemble.of([bayes.BayesMLP(bayes.Architecture(3, [4], 2)),
+                                bayes.BayesMLP(bayes.Architecture(3, [5], 2))])
