@@ -4,10 +4,11 @@ Rules (the model files are written by ``cbgo.services.static_gesture.train``):
 
 - A model is a ``cbgo.bayes`` deep ensemble of mean-field Bayesian MLPs (`bayes.BayesEnsemble`,
   ``members`` in the metadata; a file without it, written before ensembles, holds one
-  `bayes.BayesMLP`) saved as ``<base>.pt`` (state_dict) plus ``<base>.json`` (metadata). The metadata names everything needed to use it — the gesture
-  ``names`` (output order, possibly with the no-gesture class ``none``), the ``inputs`` (which of
-  the 57 features feed the network), the ``standardizer``, the ``feature_version`` — and pins
-  the weights by their SHA-256 (``weights_sha256``, over the tensors, not the file). Loading
+  `bayes.BayesMLP`) saved as ``<base>.pt`` (state_dict) plus ``<base>.json`` (metadata). The
+  metadata names everything needed to use it — the gesture ``names`` (output order, possibly
+  with the no-gesture class ``none``), the ``inputs`` (which of the 57 features feed the
+  networks), the ``standardizer``, the ``feature_version`` — and pins the weights by their
+  SHA-256 (``weights_sha256``, over the tensors, not the file). Loading
   checks all of it and refuses a model that does not fit (`ConfigError` naming the problem);
   the pin also catches a ``.pt`` and a ``.json`` from two different trainings, e.g. read while a
   trainer is replacing them.
