@@ -125,38 +125,53 @@ def model_id_of(weights_sha256: str) -> str:
 
 @dataclass
 class Posterior:
-    """``samples`` networks drawn from the variational posterior, as stacked numpy arrays.
+    """Networks drawn from the variational posteriors of an ensemble's members, stacked.
+
+    Every member contributes the same number of draws, member by member along S, so that one
+    product per layer runs them all (an ensemble costs what one network with as many draws
+    does).
 
     Attributes:
-        weights: per layer, (S, n_in, n_out).
+        weights: per layer, (S, n_in, n_out), S = members × draws per member.
         biases: per layer, (S, 1, n_out) (zeros for a layer without bias).
         activation: ``tanh`` or ``relu`` between layers.
-        mean_first: the first layer's posterior mean weights (n_in, H) and bias (H,), for
-            `embed`.
+        mean_first: the members' first-layer posterior mean weights side by side, (n_in, M·H),
+            and biases (M·H,), for `embed`.
+        members: M.
     """
 
     weights: list[np.ndarray]
     biases: list[np.ndarray]
     activation: str
     mean_first: tuple[np.ndarray, np.ndarray]
+    members: int = 1
 
     @classmethod
-    def draw(cls, model: bayes.BayesMLP, samples: int, seed: int) -> Posterior:
-        """Draws ``samples`` weight sets w = mu + sigma·eps from every layer's q(w).
+    def draw(cls, networks: bayes.BayesMLP | list[bayes.BayesMLP], samples: int,
+             seed: int) -> Posterior:
+        """Draws ``samples`` weight sets w = mu + sigma·eps from every layer's q(w), per network.
 
-        The draws are `cbgo.bayes.BayesMLP.draw`'s (the same ones torch's batched forward
-        would use), kept transposed to (S, n_in, n_out) for numpy's x @ w.
+        Network i draws from seed ``seed + i``. The draws are `cbgo.bayes.BayesMLP.draw`'s (the
+        same ones torch's batched forward would use), kept transposed to (S, n_in, n_out) for
+        numpy's x @ w.
         """
-        with torch.no_grad():
-            draws = model.draw(samples, torch.Generator().manual_seed(seed))
-        weights = [w.transpose(1, 2).double().numpy() for w, _ in draws]
-        biases = [np.zeros((samples, 1, w.shape[1])) if b is None
-                  else b[:, None, :].double().numpy() for w, b in draws]
-        first = model.layers[0]
-        mean_first = (first.w_mu.detach().double().numpy().T,
-                      np.zeros(first.w_mu.shape[0]) if first.b_mu is None
-                      else first.b_mu.detach().double().numpy())
-        return cls(weights, biases, model.arch.activation, mean_first)
+        networks = [networks] if isinstance(networks, bayes.BayesMLP) else list(networks)
+        weights, biases, firsts = [], [], []
+        for i, model in enumerate(networks):
+            with torch.no_grad():
+                draws = model.draw(samples, torch.Generator().manual_seed(seed + i))
+            weights.append([w.transpose(1, 2).double().numpy() for w, _ in draws])
+            biases.append([np.zeros((samples, 1, w.shape[1])) if b is None
+                           else b[:, None, :].double().numpy() for w, b in draws])
+            first = model.layers[0]
+            firsts.append((first.w_mu.detach().double().numpy().T,
+                           np.zeros(first.w_mu.shape[0]) if first.b_mu is None
+                           else first.b_mu.detach().double().numpy()))
+        return cls([np.concatenate(layer) for layer in zip(*weights, strict=True)],
+                   [np.concatenate(layer) for layer in zip(*biases, strict=True)],
+                   networks[0].arch.activation,
+                   (np.concatenate([w for w, _ in firsts], axis=1),
+                    np.concatenate([b for _, b in firsts])), len(networks))
 
     def __post_init__(self):
         # The first layer of all draws as one (n_in, S·n_out) matrix: one product for every
@@ -175,39 +190,30 @@ class Posterior:
         return np.tanh(h) if self.activation == "tanh" else np.maximum(h, 0.0)
 
     def embed(self, x: np.ndarray) -> np.ndarray:
-        """Returns (N, H) first-layer activations at the posterior mean weights.
+        """Returns (M, N, H) first-layer activations at each member's posterior mean weights.
 
         What the open-set rule measures distances in: the same for a model whatever the number
         of draws it runs with.
         """
         w, b = self.mean_first
-        return self._activate(np.asarray(x, dtype=np.float64) @ w + b)
+        h = self._activate(np.asarray(x, dtype=np.float64) @ w + b)
+        return h.reshape(len(h), self.members, -1).transpose(1, 0, 2)
 
-    def predict(self, x: np.ndarray) -> np.ndarray:
-        """Returns (N, C) probabilities: the softmax averaged over the drawn networks."""
+    def predict_members(self, x: np.ndarray) -> np.ndarray:
+        """Returns (M, N, C) probabilities: each member's softmax averaged over its draws."""
         h = self._first_layer(x)
         for w, b in zip(self.weights[1:], self.biases[1:], strict=True):
             h = self._activate(h) @ w + b
         h = h - h.max(-1, keepdims=True)
         np.exp(h, out=h)
         h /= h.sum(-1, keepdims=True)
-        probs = h.mean(0)
+        probs = h.reshape(self.members, -1, *h.shape[1:]).mean(1)
         return probs / probs.sum(-1, keepdims=True)
 
-
-@dataclass
-class Member:
-    """One network of a model's ensemble: its posterior draws and its open-set rule."""
-
-    posterior: Posterior
-    open_set: OpenSet | None = None
-
-    def predict(self, inputs: np.ndarray, none_index: int, open_set: bool = True) -> np.ndarray:
-        """Returns (N, C) probabilities for network inputs, far frames faded into ``none``."""
-        probs = self.posterior.predict(inputs)
-        if open_set and self.open_set is not None:
-            probs = self.open_set.apply(probs, self.posterior.embed(inputs), none_index)
-        return probs
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """Returns (N, C) probabilities: the softmax averaged over every drawn network."""
+        probs = self.predict_members(x).mean(0)
+        return probs / probs.sum(-1, keepdims=True)
 
 
 @dataclass
@@ -218,7 +224,9 @@ class StaticClassifier:
         names: gesture names in output order.
         model_id: ``static-bnn-<hash8>``.
         metadata: the model's JSON metadata.
-        members: the ensemble's networks, each with its draws and open-set rule (`Member`).
+        posterior: the draws of every member of the ensemble.
+        open_sets: each member's open-set rule (`openset`), from the metadata's ``open_set``;
+            None each for a model without one or without ``none``.
         path: the base path it was loaded from (None when built in memory).
         samples: posterior draws averaged per prediction, all members together.
     """
@@ -226,7 +234,8 @@ class StaticClassifier:
     names: list[str]
     model_id: str
     metadata: dict
-    members: list[Member] = field(repr=False)
+    posterior: Posterior = field(repr=False)
+    open_sets: list[OpenSet | None] = field(repr=False)
     inputs: np.ndarray = field(repr=False)
     mean: np.ndarray = field(repr=False)
     std: np.ndarray = field(repr=False)
@@ -248,11 +257,10 @@ class StaticClassifier:
         networks = list(model.members) if isinstance(model, bayes.BayesEnsemble) else [model]
         open_sets = _open_sets(metadata, len(networks), bayes.layer_sizes(model.arch)[1])
         sha = metadata["weights_sha256"]
-        per_member = -(-samples // len(networks))
-        members = [Member(Posterior.draw(net, per_member, int(sha[:8], 16) + i), rule)
-                   for i, (net, rule) in enumerate(zip(networks, open_sets, strict=True))]
+        posterior = Posterior.draw(networks, -(-samples // len(networks)), int(sha[:8], 16))
         return cls(names=list(metadata["names"]), model_id=model_id_of(sha), metadata=metadata,
-                   members=members, inputs=np.asarray(metadata["inputs"], dtype=np.int64),
+                   posterior=posterior, open_sets=open_sets,
+                   inputs=np.asarray(metadata["inputs"], dtype=np.int64),
                    transform=metadata.get("transform"),
                    mean=np.asarray(metadata["standardizer"]["mean"], dtype=np.float64),
                    std=np.asarray(metadata["standardizer"]["std"], dtype=np.float64),
@@ -293,8 +301,12 @@ class StaticClassifier:
         if len(x) == 0:
             return np.zeros((0, len(self.names)))
         inputs = self.network_inputs(x)
-        none_index = self.names.index(NONE) if NONE in self.names else -1
-        probs = np.mean([m.predict(inputs, none_index, open_set) for m in self.members], axis=0)
+        probs = self.posterior.predict_members(inputs)
+        if open_set and self.open_sets[0] is not None:
+            none_index = self.names.index(NONE)
+            probs = np.stack([rule.apply(p, hidden, none_index) for rule, p, hidden in zip(
+                self.open_sets, probs, self.posterior.embed(inputs), strict=True)])
+        probs = probs.mean(0)
         return probs / probs.sum(-1, keepdims=True)
 
     def network_inputs(self, features: np.ndarray) -> np.ndarray:
@@ -313,13 +325,13 @@ class StaticClassifier:
     def describe(self) -> dict:
         """Returns what status replies show about the model."""
         return {"model": self.model_id, "path": str(self.path) if self.path else None,
-                "names": self.names, "samples": self.samples, "members": len(self.members),
+                "names": self.names, "samples": self.samples,
+                "members": self.posterior.members,
                 "trained_at": self.metadata.get("trained_at"),
                 "data_hash": self.metadata.get("data_hash"),
-                "open_set": None if self.members[0].open_set is None else {
-                    "neighbours": self.members[0].open_set.neighbours,
-                    "alpha": self.members[0].open_set.alpha,
-                    "thresholds": [round(m.open_set.threshold, 4) for m in self.members]}}
+                "open_set": None if self.open_sets[0] is None else {
+                    "neighbours": self.open_sets[0].neighbours, "alpha": self.open_sets[0].alpha,
+                    "thresholds": [round(rule.threshold, 4) for rule in self.open_sets]}}
 
 
 def build_network(meta: dict) -> bayes.BayesEnsemble | bayes.BayesMLP:

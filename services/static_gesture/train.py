@@ -625,7 +625,7 @@ def fit_open_set(model: bayes.BayesMLP, inputs: np.ndarray, data: Dataset, seed:
     """Calibrates the model's open-set rule on its training gesture rows (None: no ``none``)."""
     if NONE not in data.names:
         return None
-    hidden = Posterior.draw(model, 1, seed).embed(inputs)
+    hidden = Posterior.draw(model, 1, seed).embed(inputs)[0]
     gestures = [i for i, n in enumerate(data.names) if n != NONE]
     return openset.OpenSet.fit(hidden, data.y, gestures, _rng(SIM_STREAM_OPEN_SET, seed))
 

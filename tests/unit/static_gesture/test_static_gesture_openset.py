@@ -70,8 +70,8 @@ def test_the_rule_travels_with_the_model_and_a_broken_one_is_refused(small_model
     train.save_model(tmp_path / "m", trained)
     loaded = StaticClassifier.load(tmp_path / "m", samples=4)
     fresh = train.classifier_of(trained, samples=4)
-    assert [m.open_set.reference.shape for m in loaded.members] == [
-        (len(m.open_set.reference), 8) for m in fresh.members]
+    assert [rule.reference.shape for rule in loaded.open_sets] == [
+        (len(rule.reference), 8) for rule in fresh.open_sets]
     assert loaded.predict_features(data.x[:50]) == pytest.approx(
         fresh.predict_features(data.x[:50]), abs=1e-6)
     assert all(t > 0 for t in loaded.describe()["open_set"]["thresholds"])

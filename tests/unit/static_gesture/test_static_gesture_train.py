@@ -7,7 +7,7 @@ import pytest
 
 from cbgo.hands.data import load_real_features
 from cbgo.services.static_gesture import train
-from cbgo.services.static_gesture.classifier import StaticClassifier
+from cbgo.services.static_gesture.classifier import Posterior, StaticClassifier
 from cbgo.wire import STATIC_GESTURES
 
 
@@ -171,11 +171,17 @@ def test_an_ensemble_averages_networks_that_disagree(tmp_path):
     trained = train.fit(train.build_datasets(options, small_real(), user=[]), options)
     assert len(trained.model.members) == 2 and trained.metadata["members"] == 2
     clf = train.classifier_of(trained, samples=8)
-    assert [len(m.posterior.weights[0]) for m in clf.members] == [4, 4]  # 8 draws in all
-    x = small_real()[0]
-    each = [m.predict(clf.network_inputs(x), clf.names.index("none")) for m in clf.members]
+    inputs = clf.network_inputs(small_real()[0])
+    seed = int(clf.metadata["weights_sha256"][:8], 16)
+    alone = [Posterior.draw(network, 4, seed + i)  # 8 draws in all, 4 from each member
+             for i, network in enumerate(trained.model.members)]
+    each = [posterior.predict(inputs) for posterior in alone]
     assert np.abs(each[0] - each[1]).max() > 0.05  # their own seeds and data
-    assert clf.predict_features(x) == pytest.approx(np.mean(each, axis=0))
+    assert clf.posterior.predict_members(inputs) == pytest.approx(np.stack(each))
+    assert clf.posterior.embed(inputs) == pytest.approx(
+        np.stack([posterior.embed(inputs)[0] for posterior in alone]))
+    assert clf.predict_features(small_real()[0], open_set=False) == pytest.approx(
+        np.mean(each, axis=0))
     _, _, model_id = train.save_model(tmp_path / "m", trained)
     loaded = StaticClassifier.load(tmp_path / "m", samples=8)
     assert loaded.model_id == model_id and loaded.describe()["members"] == 2
@@ -197,6 +203,6 @@ def test_a_model_of_one_network_written_before_ensembles_still_loads(tmp_path):
     old = StaticClassifier.load(tmp_path / "old", samples=4)
     fresh = StaticClassifier.from_model(network, meta, samples=4)  # draws seeded by its hash
     x = small_real(20)[0]
-    assert len(old.members) == 1 and old.members[0].open_set is not None
+    assert old.posterior.members == 1 and old.open_sets[0] is not None
     assert old.model_id == "static-bnn-" + meta["weights_sha256"][:8]
     assert old.predict_features(x) == pytest.approx(fresh.predict_features(x), abs=1e-9)
