@@ -93,6 +93,7 @@ import torch
 import cbgo
 from cbgo import bayes
 from cbgo.config import data_dir
+from cbgo.errors import ConfigError
 from cbgo.hands import features as F
 from cbgo.hands.data import load_real_features, real_features_sha256
 from cbgo.hands.model import HandPose, HandShape, blend, build_hands, clip_to_limits, neutral_pose
@@ -148,8 +149,9 @@ class TrainOptions:
     members: int = 3
 
     def __post_init__(self):
-        if self.members < 1:
-            raise ValueError(f"members must be at least 1, got {self.members}")
+        if self.members < 1 or self.epochs < 1:
+            raise ValueError(f"members and epochs must be at least 1, got {self.members} and "
+                             f"{self.epochs}")
         if self.features not in ("raw", *invariant.TRANSFORMS):
             raise ValueError(f"features must be one of raw, {', '.join(invariant.TRANSFORMS)}; "
                              f"got {self.features!r}")
@@ -779,8 +781,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=d.seed, help=f"[{d.seed}]")
     parser.add_argument("--members", type=int, default=d.members,
                         help="networks in the ensemble, each trained on its own draw of the "
-                             "data: 3 read unseen people 0.7 points better than one and reject "
-                             "2 points more unknown poses, at 3 times the training time "
+                             "data: 3 read unseen people about 1 point better than one and "
+                             "reject 3 points more unknown poses, at 3 times the training time "
                              f"(services/static_gesture/README.md) [{d.members}]")
     parser.add_argument("--off-vocabulary", type=int, default=d.off_vocabulary,
                         help=f"simulated poses outside the vocabulary, as none "
@@ -819,7 +821,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def options_from(args: argparse.Namespace) -> TrainOptions:
-    """Returns the training options of parsed flags."""
+    """Returns the training options of parsed flags.
+
+    Raises:
+        ConfigError: flags no training can run with (naming them).
+    """
+    try:
+        return _options_of(args)
+    except ValueError as e:
+        raise ConfigError(str(e)) from None
+
+
+def _options_of(args: argparse.Namespace) -> TrainOptions:
     return TrainOptions(per_gesture=args.per_gesture, none=0 if args.no_none else args.none,
                         hidden=list(args.hidden), epochs=args.epochs, lr=args.lr,
                         prior_sigma=args.prior_sigma, seed=args.seed, members=args.members,

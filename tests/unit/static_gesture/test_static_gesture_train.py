@@ -206,3 +206,15 @@ def test_a_model_of_one_network_written_before_ensembles_still_loads(tmp_path):
     assert old.posterior.members == 1 and old.open_sets[0] is not None
     assert old.model_id == "static-bnn-" + meta["weights_sha256"][:8]
     assert old.predict_features(x) == pytest.approx(fresh.predict_features(x), abs=1e-9)
+
+
+@pytest.mark.parametrize("flags", [["--members", "0"], ["--epochs", "0"]])
+def test_flags_no_training_can_run_with_are_a_clear_error(flags):
+    import argparse
+
+    from cbgo.errors import ConfigError
+
+    parser = argparse.ArgumentParser()
+    train.add_arguments(parser)
+    with pytest.raises(ConfigError, match="must be at least 1"):
+        train.options_from(parser.parse_args(flags))
