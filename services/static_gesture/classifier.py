@@ -228,7 +228,8 @@ class StaticClassifier:
         open_sets: each member's open-set rule (`openset`), from the metadata's ``open_set``;
             None each for a model without one or without ``none``.
         path: the base path it was loaded from (None when built in memory).
-        samples: posterior draws averaged per prediction, all members together.
+        samples: posterior draws asked for, all members together (each member draws its
+            share rounded up: 32 over three members are 11 each).
     """
 
     names: list[str]
