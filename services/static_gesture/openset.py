@@ -61,10 +61,15 @@ def kth_distance(reference: np.ndarray, query: np.ndarray, k: int,
     out = np.empty(len(query))
     ref_sq = (reference ** 2).sum(1) if ref_sq is None else ref_sq
     for i in range(0, len(query), _CHUNK):
-        q = query[i:i + _CHUNK]
-        d2 = (q ** 2).sum(1)[:, None] + ref_sq[None] - 2.0 * q @ reference.T
+        d2 = _squared_distances(reference, query[i:i + _CHUNK], ref_sq)
         out[i:i + _CHUNK] = np.sqrt(np.maximum(np.partition(d2, k - 1, 1)[:, k - 1], 0.0))
     return out
+
+
+def _squared_distances(reference: np.ndarray, query: np.ndarray, ref_sq: np.ndarray
+                       ) -> np.ndarray:
+    """Returns the (Q, R) squared Euclidean distances (may round a hair below zero)."""
+    return (query ** 2).sum(1)[:, None] + ref_sq[None] - 2.0 * query @ reference.T
 
 
 def split_per_class(y: np.ndarray, classes: list[int], rng: np.random.Generator
@@ -101,6 +106,14 @@ class OpenSet:
 
     def __post_init__(self):
         self._ref_sq = (self.reference ** 2).sum(1)
+        # The distance up to which a frame keeps its probabilities (its p-value reaches alpha):
+        # the fewest calibration distances at least as far that make p / alpha ≥ 1, counted
+        # with the very arithmetic `apply` uses.
+        n = len(self.calibration)
+        enough = (1.0 + np.arange(n + 1)) / (n + 1.0) / self.alpha >= 1.0
+        least = int(np.argmax(enough)) if enough.any() else n + 1
+        self._keeps_up_to = (np.inf if least == 0 else
+                             -np.inf if least > n else float(self.calibration[n - least]))
 
     @classmethod
     def fit(cls, hidden: np.ndarray, y: np.ndarray, gesture_classes: list[int],
@@ -130,11 +143,30 @@ class OpenSet:
         return (1.0 + farther) / (len(self.calibration) + 1.0)
 
     def apply(self, probs: np.ndarray, hidden: np.ndarray, none_index: int) -> np.ndarray:
-        """Returns the probabilities with far frames' gestures faded into ``none``."""
-        keep = np.minimum(1.0, self.p_values(hidden) / self.alpha)
+        """Returns the probabilities with far frames' gestures faded into ``none``.
+
+        Only the frames past the line get their p-value: a frame with ``neighbours``
+        references within it keeps its answer, and counting them is cheaper than ranking every
+        reference (most frames are ordinary; half the cost of a frame's classification).
+        """
+        keep = np.ones(len(hidden))
+        far = ~self._near(hidden)
+        if far.any():
+            keep[far] = np.minimum(1.0, self.p_values(hidden[far]) / self.alpha)
         out = probs * keep[:, None]
         out[:, none_index] = probs[:, none_index] + (1.0 - keep) * (1.0 - probs[:, none_index])
         return out
+
+    def _near(self, hidden: np.ndarray) -> np.ndarray:
+        """Returns whether each row's k-th nearest reference lies within the keeping line."""
+        if np.isinf(self._keeps_up_to):
+            return np.full(len(hidden), self._keeps_up_to > 0)
+        near = np.empty(len(hidden), dtype=bool)
+        for i in range(0, len(hidden), _CHUNK):
+            d = np.sqrt(np.maximum(_squared_distances(self.reference, hidden[i:i + _CHUNK],
+                                                      self._ref_sq), 0.0))
+            near[i:i + _CHUNK] = (d <= self._keeps_up_to).sum(1) >= self.neighbours
+        return near
 
     def to_dict(self) -> dict:
         """Returns plain data (JSON-safe) for the model's metadata."""

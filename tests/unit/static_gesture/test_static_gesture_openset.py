@@ -90,3 +90,18 @@ def test_each_member_needs_its_own_rule(small_model, tmp_path):
     (tmp_path / "m.json").write_text(json.dumps(meta))
     with pytest.raises(ConfigError, match="1 rules for 2 networks"):
         StaticClassifier.load(tmp_path / "m")
+
+
+@pytest.mark.parametrize("alpha", [0.01, 0.2, 0.999])
+def test_ranking_only_the_frames_past_the_line_changes_no_answer(alpha):
+    rng = np.random.default_rng(1)
+    reference = rng.normal(size=(400, 3))
+    rule = openset.OpenSet(reference, np.sort(openset.kth_distance(
+        reference, rng.normal(size=(300, 3)), 5)), neighbours=5, alpha=alpha)
+    hidden = rng.normal(size=(500, 3)) * np.linspace(0.5, 3.0, 500)[:, None]  # near to far
+    probs = rng.dirichlet(np.ones(4), size=500)
+    every = np.minimum(1.0, rule.p_values(hidden) / alpha)  # the rule, every frame ranked
+    want = probs * every[:, None]
+    want[:, 3] = probs[:, 3] + (1.0 - every) * (1.0 - probs[:, 3])
+    assert 0 < (every < 1).sum() < 500  # both kinds of frame are there
+    assert rule.apply(probs, hidden, none_index=3) == pytest.approx(want, abs=1e-12)
