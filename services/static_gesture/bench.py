@@ -454,6 +454,7 @@ def recipe_of(clf: StaticClassifier) -> train.TrainOptions:
     saved = {k: v for k, v in (clf.metadata.get("options") or {}).items() if k in known}
     if "features" not in saved:  # a model from before the device-independent features
         saved.update(features="raw", mmhgr=False, off_vocabulary=0)
+    saved.setdefault("members", clf.posterior.members)  # one network, from before ensembles
     return train.TrainOptions(**saved)
 
 

@@ -54,3 +54,23 @@ def test_the_unknown_pose_goals_read_held_out_and_seen_poses_apart():
     assert held == (False, "62.0%") and seen == (True, "95.5%")
     skipped = bench._goals({"throughput": throughput})
     assert all(met is None for name, met, _ in skipped if name.startswith("unknown poses"))
+
+
+def test_the_recipe_of_a_model_keeps_its_number_of_networks():
+    import json as _json
+
+    from cbgo.services.static_gesture import train
+    from cbgo.services.static_gesture.classifier import StaticClassifier, weights_sha256
+
+    x, y, names = load_real_features()
+    options = train.TrainOptions(per_gesture=2, none=4, off_vocabulary=4, hidden=[4], epochs=1,
+                                 members=2, mmhgr=False, user_gestures=False)
+    trained = train.fit(train.build_datasets(options, (x[:200], y[:200], names), user=[]),
+                        options)
+    assert bench.recipe_of(train.classifier_of(trained)).members == 2
+    network = trained.model.members[0]  # as a model written before ensembles holds it
+    meta = _json.loads(_json.dumps(trained.metadata, default=train._plain))
+    del meta["members"], meta["options"]["members"]
+    meta["open_set"] = meta["open_set"][0]
+    meta["weights_sha256"] = weights_sha256(network.state_dict())
+    assert bench.recipe_of(StaticClassifier.from_model(network, meta, samples=4)).members == 1
