@@ -570,11 +570,11 @@ def fit(datasets: Dataset | list[Dataset], options: TrainOptions,
         seed = member_seed(options.seed, i)
         label = progress if not isinstance(progress, str) or len(datasets) == 1 \
             else f"{progress} ({i + 1}/{len(datasets)})"
-        network, history = _fit_network(standardizer(x), d, arch, replace(options, seed=seed),
-                                        label)
+        inputs_z = standardizer(x)
+        network, history = _fit_network(inputs_z, d, arch, replace(options, seed=seed), label)
         networks.append(network)
         histories.append(history)
-        open_sets.append(fit_open_set(network, standardizer(x), d, seed))
+        open_sets.append(fit_open_set(network, inputs_z, d, seed))
     config = bayes.TrainConfig(options.epochs, options.batch_size, options.lr, options.seed,
                                options.kl_scale)
     history = np.mean(histories, axis=0).tolist()
