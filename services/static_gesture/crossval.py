@@ -18,7 +18,10 @@ per-person accuracy, the confusion, rejection per held-out pose, accuracy by the
 confidence (the frame's ``Confidence``), accuracy on the frames whose tracker's own finger
 flags show their pose and on the others (`mmhgr.Frames.tracker_agrees`: where they differ, the
 reported skeleton shows another pose), balanced accuracy with the held-out hands turned
-about the palm (`TURNS`: pitched ±30°, +60°, fingers up, rolled ±90°, palm up). Every model
+about the palm (`TURNS`: pitched ±30°, +60°, fingers up, rolled ±90°, palm up), hands
+midway between two of a held-out person's gestures rejected (`transitions`), and the answers
+to the flat open hands no model trains on (`mmhgr.AMBIGUOUS`: palm down, edge-on, palm up;
+fingers together, so neither five nor an unknown pose by the data alone). Every model
 applies its open-set rule (`openset`, calibrated on its own training rows); the network's
 answers without it are scored too, to show what the rule adds to the rejection and costs the
 known gestures.
@@ -33,9 +36,10 @@ from dataclasses import replace
 import numpy as np
 
 from cbgo import metrics
+from cbgo.hands import features as F
 from cbgo.hands.data import load_real_features
 from cbgo.hands.model import rotation
-from cbgo.services.static_gesture import mmhgr, train
+from cbgo.services.static_gesture import invariant, mmhgr, train
 from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW
 from cbgo.wire import STATIC_GESTURES
 
@@ -48,6 +52,9 @@ TURNS = {"pitch -30°": ("x", -30.0), "pitch +30°": ("x", 30.0), "pitch +60°":
 Leap frame, degrees; +pitch raises the fingers, roll turns about the forward axis): how the
 model holds when a person, or a sensor mount, holds the hand otherwise. Yaw (about the
 vertical) is left out: the features do not see it."""
+TRANSITIONS_PER_PERSON = 200
+"""Hands midway between two gestures scored per held-out person (`transitions`)."""
+_YAWS = np.array([k for k, name in enumerate(F.FEATURE_NAMES) if name.endswith("_dyaw")])
 
 
 def turn_rotations(n: int, axis: str, deg: float) -> np.ndarray:
@@ -61,6 +68,46 @@ def person_folds(people: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
     rng = np.random.default_rng(seed)
     folds = max(2, min(int(folds), len(people)))
     return [np.sort(g) for g in np.array_split(rng.permutation(people), folds)]
+
+
+def transitions(frames: mmhgr.Frames, count: int, rng: np.random.Generator,
+                alpha: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Returns hands part-way between two gestures of one person: (count, 57) and their pairs.
+
+    Why: a hand changing from one gesture to another passes through shapes that are neither,
+    and issue 15 asks for those to be answered ``none``. The HGR set records no transitions,
+    so each is made from two real frames of one person showing different gestures: every
+    angle of the 57 (yaw differences wrapped) and every distance taken ``alpha`` of the way
+    from the first to the second, each joint turning at once, as a hand moving between poses
+    does to a first approximation.
+
+    Args:
+        frames: the frames to draw from (people with fewer than two gestures are skipped).
+        count: how many hands.
+        rng: the random generator (which frames pair up).
+        alpha: how far from the first frame towards the second.
+
+    Returns:
+        ``(x, pairs)``: features on the recorded side, and each hand's "first/second" gestures
+        in alphabetical order. Empty when no person shows two gestures.
+    """
+    labels = frames.labels()
+    known = np.flatnonzero(labels != "")
+    people = [u for u in np.unique(frames.user[known])
+              if len(np.unique(labels[known][frames.user[known] == u])) > 1]
+    if not people or count <= 0:
+        return np.zeros((0, F.N_FEATURES)), np.zeros(0, dtype=str)
+    firsts, seconds = [], []
+    for u in rng.choice(people, count):
+        rows = known[frames.user[known] == u]
+        a = rng.choice(rows)
+        firsts.append(a)
+        seconds.append(rng.choice(rows[labels[rows] != labels[a]]))
+    x = mmhgr.features57(frames.subset(np.array(firsts)))
+    step = mmhgr.features57(frames.subset(np.array(seconds))) - x
+    step[:, _YAWS] = invariant.wrap(step[:, _YAWS])
+    pairs = ["/".join(sorted(pair)) for pair in zip(labels[firsts], labels[seconds], strict=True)]
+    return x + alpha * step, np.array(pairs)
 
 
 def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int = 5,
@@ -101,6 +148,11 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
                       "turned": {name: np.array(clf.names)[clf.predict_features(
                           mmhgr.features57(sub, turn_rotations(len(sub), *turn))).argmax(1)]
                           for name, turn in TURNS.items()}})
+        x_mid, pairs = transitions(sub, TRANSITIONS_PER_PERSON * len(people),
+                                   np.random.default_rng([seed, k]))
+        mid = clf.predict_features(x_mid) if len(x_mid) else np.zeros((0, len(clf.names)))
+        parts[-1]["transitions"] = (pairs, _rejected(np.array(clf.names)[mid.argmax(1)],
+                                                     mid.max(1)))
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
@@ -178,7 +230,9 @@ def summarise(parts: list[dict]) -> dict:
     for name in parts[0].get("turned") or {}:
         turned_correct = np.concatenate([p["turned"][name] for p in parts]) == label
         turned[name] = _balanced(turned_correct, label, known, classes)
-    return {"classes": classes, "recall": recall, "balanced_accuracy": float(np.mean(recall)),
+    return {"classes": classes, "recall": recall,
+            "transitions": _transition_figures(parts), "flat_hands": _flat_hands(pose, pred, top),
+            "balanced_accuracy": float(np.mean(recall)),
             "interval": _people_interval(label[known], pred[known], user[known]),
             # the rejection as a one-class recall: every truth NONE, a rejected frame's answer NONE
             "rejection_interval": _people_interval(np.full(int(held.sum()), NONE),
@@ -192,6 +246,31 @@ def summarise(parts: list[dict]) -> dict:
             "rejection_n": int(held.sum()), "rejection_seen": rejection_seen,
             "rejection_seen_overall": float(rejected[seen].mean()) if seen.any() else None,
             "by_confidence": by_conf, "tracker_agrees": tracker}
+
+
+def _transition_figures(parts: list[dict]) -> dict | None:
+    """Pools the midway hands: ``{rejected, n, per_pair: {pair: rejected}}`` (None: none)."""
+    if "transitions" not in parts[0]:
+        return None
+    pairs = np.concatenate([p["transitions"][0] for p in parts])
+    rejected = np.concatenate([p["transitions"][1] for p in parts])
+    if not len(pairs):
+        return None
+    return {"rejected": float(rejected.mean()), "n": int(len(pairs)),
+            "per_pair": {str(q): float(rejected[pairs == q].mean()) for q in np.unique(pairs)}}
+
+
+def _flat_hands(pose: np.ndarray, pred: np.ndarray, top: np.ndarray) -> dict:
+    """Per flat-hand pose present: ``{n, five, rejected, other}`` shares of the answers."""
+    rejected = _rejected(pred, top)
+    out = {}
+    for q in mmhgr.AMBIGUOUS:
+        sel = pose == q
+        if sel.any():
+            five = float((~rejected[sel] & (pred[sel] == "five")).mean())
+            out[q] = {"n": int(sel.sum()), "five": five, "rejected": float(rejected[sel].mean()),
+                      "other": 1.0 - five - float(rejected[sel].mean())}
+    return out
 
 
 def _people_interval(label: np.ndarray, pred: np.ndarray, user: np.ndarray
@@ -268,6 +347,7 @@ def print_figures(fig: dict) -> None:
     if fig.get("turned"):
         print("  the same frames turned about the palm (balanced accuracy): " + ", ".join(
             f"{name} {a:.2%}" for name, a in fig["turned"].items()))
+    _print_unknown_shapes(fig)
     t = fig.get("tracker_agrees")
     if t and t["balanced"] is not None:
         other = t["balanced_otherwise"]
@@ -282,3 +362,21 @@ def print_figures(fig: dict) -> None:
     print("accuracy by tracking confidence: " + "; ".join(
         f"[{b['lo']:.2f}, {b['hi']:.2f}) {b['accuracy']:.1%} (n={b['n']})" if b["n"] else
         f"[{b['lo']:.2f}, {b['hi']:.2f}) - (n=0)" for b in fig["by_confidence"]))
+
+
+FLAT_HAND_NAMES = {"palm": "palm down", "palm_m": "edge-on", "palm_u": "palm up"}
+
+
+def _print_unknown_shapes(fig: dict) -> None:
+    """Prints the midway hands' rejection and the answers to the never-trained flat hands."""
+    mid = fig.get("transitions")
+    if mid:
+        worst = sorted(mid["per_pair"].items(), key=lambda item: item[1])[:3]
+        print(f"hands midway between two of a held-out person's gestures (joint angles "
+              f"interpolated; transitions): {mid['rejected']:.1%} rejected (n={mid['n']}); "
+              "least: " + ", ".join(f"{q} {r:.1%}" for q, r in worst))
+    if fig.get("flat_hands"):
+        print("flat open hands, fingers together (trained neither as five nor as none): "
+              + "; ".join(f"{FLAT_HAND_NAMES.get(q, q)} five {f['five']:.1%}, rejected "
+                          f"{f['rejected']:.1%}, other {f['other']:.1%} (n={f['n']})"
+                          for q, f in fig["flat_hands"].items()))

@@ -48,7 +48,8 @@ def _hand(name, side, seed):
 
 def write_dataset(root, people=(1, 2), poses=("fist_moved", "five", "up", "ok"), per_pose=3):
     """Writes user_NN/train_pose/<pose>/frame_K.xml files; returns the hands in file order."""
-    gesture_of = {"fist_moved": "grab", "ok": "pinch", "C": "two", "L": "point", **{
+    gesture_of = {"fist_moved": "grab", "ok": "pinch", "C": "two", "L": "point", "palm_m": "five",
+                  **{
         p: g for p, g in mmhgr.POSE_MAP.items() if p not in ("fist_moved",)}}
     hands = {}
     for user in people:
@@ -196,7 +197,7 @@ def test_a_converted_frame_reads_its_palm_axis_from_the_hand_direction(tmp_path)
 
 def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp_path):
     write_dataset(tmp_path / "src", people=(1, 2, 3, 4),
-                  poses=("fist_moved", "five", "up", "C", "L"), per_pose=2)
+                  poses=("fist_moved", "five", "up", "C", "L", "palm_m"), per_pose=2)
     mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     options = train.TrainOptions(per_gesture=2, none=4, off_vocabulary=4, hidden=[4],
@@ -219,7 +220,42 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert fig["tracker_agrees"]["share"] == pytest.approx(1 / 3)
     assert fig["tracker_agrees"]["balanced"] is None  # grab and thumbsup have no such frame
     assert fig["tracker_agrees"]["thumb_too_share"] == pytest.approx(1 / 3)  # five's thumb out
+    # Every held-out person's midway hands are scored; the flat hands' answers are shares.
+    assert fig["transitions"]["n"] == 4 * crossval.TRANSITIONS_PER_PERSON
+    assert set(fig["transitions"]["per_pair"]) == {"five/grab", "five/thumbsup", "grab/thumbsup"}
+    flat = fig["flat_hands"]["palm_m"]
+    assert flat["n"] == 4 * 2 and flat["five"] + flat["rejected"] + flat["other"] == pytest.approx(1)
     crossval.print_figures(fig)
+
+
+def test_a_transition_lies_between_two_gestures_of_one_person(tmp_path):
+    write_dataset(tmp_path / "src", people=(1, 2), poses=("fist_moved", "five", "up", "C"),
+                  per_pose=2)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    x = mmhgr.features57(frames)
+    labels = frames.labels()
+    ends = [crossval.transitions(frames, 30, np.random.default_rng(5), alpha)
+            for alpha in (0.0, 0.5, 1.0)]
+    (first, pairs), (mid, _), (second, _) = ends
+
+    def row_of(v):  # the frame a hand is, its yaws read modulo a turn
+        gap = invariant.wrap(x - v)
+        return int(np.argmin(np.abs(gap).max(1)))
+
+    for k in range(30):
+        i, j = row_of(first[k]), row_of(second[k])
+        assert np.abs(invariant.wrap(x[i] - first[k])).max() < 1e-9
+        assert np.abs(invariant.wrap(x[j] - second[k])).max() < 1e-6
+        assert frames.user[i] == frames.user[j] and labels[i] != labels[j] != ""
+        assert pairs[k] == "/".join(sorted((labels[i], labels[j])))
+        # halfway: every pitch and distance, every yaw by the shorter way round
+        step = second[k] - first[k]
+        yaws = np.array([n.endswith("_dyaw") for n in F.FEATURE_NAMES])
+        step[yaws] = invariant.wrap(step[yaws])
+        assert np.abs(mid[k] - (first[k] + step / 2)).max() < 1e-6
+    assert len(crossval.transitions(frames.subset(labels == "five"), 5,
+                                    np.random.default_rng(0))[0]) == 0  # one gesture: no pair
 
 
 @pytest.mark.parametrize(("pose", "flags", "agrees"), [
