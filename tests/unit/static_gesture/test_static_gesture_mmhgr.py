@@ -224,7 +224,8 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert fig["transitions"]["n"] == 4 * crossval.TRANSITIONS_PER_PERSON
     assert set(fig["transitions"]["per_pair"]) == {"five/grab", "five/thumbsup", "grab/thumbsup"}
     flat = fig["flat_hands"]["palm_m"]
-    assert flat["n"] == 4 * 2 and flat["five"] + flat["rejected"] + flat["other"] == pytest.approx(1)
+    assert flat["n"] == 4 * 2
+    assert flat["five"] + flat["rejected"] + flat["other"] == pytest.approx(1)
     crossval.print_figures(fig)
 
 
