@@ -54,7 +54,8 @@ model holds when a person, or a sensor mount, holds the hand otherwise. Yaw (abo
 vertical) is left out: the features do not see it."""
 TRANSITIONS_PER_PERSON = 200
 """Hands midway between two gestures scored per held-out person (`transitions`)."""
-_YAWS = np.array([k for k, name in enumerate(F.FEATURE_NAMES) if name.endswith("_dyaw")])
+FLAT_HAND_NAMES = {"palm": "palm down", "palm_m": "edge-on", "palm_u": "palm up"}
+"""What the flat hands of `mmhgr.AMBIGUOUS` are, as the figures name them."""
 
 
 def turn_rotations(n: int, axis: str, deg: float) -> np.ndarray:
@@ -105,7 +106,7 @@ def transitions(frames: mmhgr.Frames, count: int, rng: np.random.Generator,
         seconds.append(rng.choice(rows[labels[rows] != labels[a]]))
     x = mmhgr.features57(frames.subset(np.array(firsts)))
     step = mmhgr.features57(frames.subset(np.array(seconds))) - x
-    step[:, _YAWS] = invariant.wrap(step[:, _YAWS])
+    step[:, F.YAW_FEATURES] = invariant.wrap(step[:, F.YAW_FEATURES])
     pairs = ["/".join(sorted(pair)) for pair in zip(labels[firsts], labels[seconds], strict=True)]
     return x + alpha * step, np.array(pairs)
 
@@ -268,8 +269,9 @@ def _flat_hands(pose: np.ndarray, pred: np.ndarray, top: np.ndarray) -> dict:
         sel = pose == q
         if sel.any():
             five = float((~rejected[sel] & (pred[sel] == "five")).mean())
-            out[q] = {"n": int(sel.sum()), "five": five, "rejected": float(rejected[sel].mean()),
-                      "other": 1.0 - five - float(rejected[sel].mean())}
+            refused = float(rejected[sel].mean())
+            out[q] = {"n": int(sel.sum()), "five": five, "rejected": refused,
+                      "other": 1.0 - five - refused}
     return out
 
 
@@ -362,9 +364,6 @@ def print_figures(fig: dict) -> None:
     print("accuracy by tracking confidence: " + "; ".join(
         f"[{b['lo']:.2f}, {b['hi']:.2f}) {b['accuracy']:.1%} (n={b['n']})" if b["n"] else
         f"[{b['lo']:.2f}, {b['hi']:.2f}) - (n=0)" for b in fig["by_confidence"]))
-
-
-FLAT_HAND_NAMES = {"palm": "palm down", "palm_m": "edge-on", "palm_u": "palm up"}
 
 
 def _print_unknown_shapes(fig: dict) -> None:

@@ -49,8 +49,7 @@ def _hand(name, side, seed):
 def write_dataset(root, people=(1, 2), poses=("fist_moved", "five", "up", "ok"), per_pose=3):
     """Writes user_NN/train_pose/<pose>/frame_K.xml files; returns the hands in file order."""
     gesture_of = {"fist_moved": "grab", "ok": "pinch", "C": "two", "L": "point", "palm_m": "five",
-                  **{
-        p: g for p, g in mmhgr.POSE_MAP.items() if p not in ("fist_moved",)}}
+                  **{p: g for p, g in mmhgr.POSE_MAP.items() if p not in ("fist_moved",)}}
     hands = {}
     for user in people:
         for pose in poses:
@@ -239,20 +238,20 @@ def test_a_transition_lies_between_two_gestures_of_one_person(tmp_path):
     ends = [crossval.transitions(frames, 30, np.random.default_rng(5), alpha)
             for alpha in (0.0, 0.5, 1.0)]
     (first, pairs), (mid, _), (second, _) = ends
+    yaws = np.array([n.endswith("_dyaw") for n in F.FEATURE_NAMES])
 
-    def row_of(v):  # the frame a hand is, its yaws read modulo a turn
-        gap = invariant.wrap(x - v)
-        return int(np.argmin(np.abs(gap).max(1)))
+    def gap(a, b):  # per feature, the yaws read modulo a turn
+        d = a - b
+        d[..., yaws] = invariant.wrap(d[..., yaws])
+        return np.abs(d)
 
     for k in range(30):
-        i, j = row_of(first[k]), row_of(second[k])
-        assert np.abs(invariant.wrap(x[i] - first[k])).max() < 1e-9
-        assert np.abs(invariant.wrap(x[j] - second[k])).max() < 1e-6
+        i, j = (int(np.argmin(gap(x, end[k]).max(1))) for end in (first, second))
+        assert gap(x[i], first[k]).max() < 1e-9 and gap(x[j], second[k]).max() < 1e-6
         assert frames.user[i] == frames.user[j] and labels[i] != labels[j] != ""
         assert pairs[k] == "/".join(sorted((labels[i], labels[j])))
         # halfway: every pitch and distance, every yaw by the shorter way round
         step = second[k] - first[k]
-        yaws = np.array([n.endswith("_dyaw") for n in F.FEATURE_NAMES])
         step[yaws] = invariant.wrap(step[yaws])
         assert np.abs(mid[k] - (first[k] + step / 2)).max() < 1e-6
     assert len(crossval.transitions(frames.subset(labels == "five"), 5,
