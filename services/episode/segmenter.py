@@ -4,10 +4,13 @@ An episode starts with the first frame that shows a hand and ends once no hand h
 ``debounce_s`` (default 0.15 s), so a tracking dropout of a frame or two does not split it. The
 end condition is met at *last hand frame + debounce*; it is detected by whichever comes first:
 
-- **frame**: a frame (with or without a hand) whose ``ts`` is at least ``debounce_s`` after the
-  last hand frame's. Sensors keep streaming empty frames when nobody is in view, so this is the
+- **frame**: a frame without a hand whose ``ts`` is at least ``debounce_s`` after the last
+  hand frame's. Sensors keep streaming empty frames when nobody is in view, so this is the
   usual path; it is exact on the frames' clock but waits for the next frame (up to one frame
-  period late). A hand frame after such a gap ends the old episode and starts a new one.
+  period late). Only such a frame shows the hand gone: a hand frame after a gap in which no
+  frame came (frames lost on a busy network, seen as a jump in ``seq``) continues the episode,
+  unless the gap is as long as the clock's wait below (``debounce_s + clock_slack_s``); then
+  it ends the old episode and starts a new one.
 - **clock**: the service's clock (monotonic, local) says ``debounce_s`` plus a slack
   (``clock_slack_s``) have passed since the last hand frame *arrived*: frames that come late in
   a burst (a stalled process, a busy network) must not end an episode whose hand is still
@@ -83,7 +86,9 @@ class Segmenter:
             visible: whether the frame shows at least one hand.
         """
         out = []
-        if self.open and ts - self.last_hand_ts >= self.debounce_s - STAMP_TOLERANCE_S:
+        # A frame without a hand is evidence the hand has gone; a gap without frames is not.
+        wait = self.clock_wait_s if visible else self.debounce_s
+        if self.open and ts - self.last_hand_ts >= wait - STAMP_TOLERANCE_S:
             out.append(self._end("frame"))
         if visible:
             if not self.open:

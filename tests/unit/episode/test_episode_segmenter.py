@@ -63,6 +63,25 @@ def test_a_hand_after_a_long_gap_ends_the_old_episode_and_starts_a_new_one():
     assert [(b.kind, b.ts) for b in got] == [("end", 0.0), ("start", 0.5)] and seg.open
 
 
+def test_a_hand_after_frames_lost_on_the_network_continues_the_episode():
+    # Ten frames (167 ms at 60 Hz) lost between publisher and service: no frame showed the
+    # hand gone, so the gesture is not cut in two (seen in the compose demo on a loaded host).
+    seg = Segmenter(0.15, clock_slack_s=2.0)
+    seg.frame(0.0, 0.0, True)
+    assert seg.frame(0.167, 0.167, True) == [] and seg.open
+    assert seg.tick(0.167 + 2.0) is None  # the clock counts from the last hand frame
+    (end,) = seg.frame(0.167 + 0.15, 0.167 + 0.15, False)  # an empty frame still ends it
+    assert end.by == "frame" and end.ts == pytest.approx(0.167)
+
+
+def test_a_hand_after_a_gap_as_long_as_the_clocks_wait_starts_a_new_episode():
+    seg = Segmenter(0.15, clock_slack_s=2.0)
+    seg.frame(0.0, 0.0, True)
+    assert seg.frame(2.1, 0.2, True) == []  # 2.1 s on the frames' clock: within the wait
+    got = seg.frame(2.1 + 2.15, 0.3, True)
+    assert [(b.kind, b.ts) for b in got] == [("end", 2.1), ("start", 4.25)] and seg.open
+
+
 def test_an_empty_frame_that_arrives_late_is_judged_by_the_local_clock():
     seg = Segmenter(0.15)
     seg.frame(10.0, 0.0, True)
