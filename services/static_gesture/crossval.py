@@ -41,6 +41,7 @@ from cbgo.hands.data import load_real_features
 from cbgo.hands.model import rotation
 from cbgo.services.static_gesture import invariant, mmhgr, train
 from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW
+from cbgo.services.static_gesture.openset import fade_into_none
 from cbgo.wire import STATIC_GESTURES
 
 POSE_HALVES = (("hang", "down"), ("C", "L", "heavy"))
@@ -56,6 +57,15 @@ TRANSITIONS_PER_PERSON = 200
 """Hands midway between two gestures scored per held-out person (`transitions`)."""
 FLAT_HAND_NAMES = {"palm": "palm down", "palm_m": "edge-on", "palm_u": "palm up"}
 """What the flat hands of `mmhgr.AMBIGUOUS` are, as the figures name them."""
+MAX_FRAME_GAP = 25
+"""Two kept frames of one take at most this many tracker frames apart are consecutive
+(`finger_motion`; the set keeps one tracker frame in about 13, and stamps no time)."""
+MOTION_BINS = (0.0, 4.0, 8.0, 16.0, 32.0, np.inf)
+"""Bins of a frame's finger motion (°, `finger_motion`) for the accuracy by motion."""
+FINGER_GATES = ((10.0, 20.0), (15.0, 30.0), (20.0, 40.0))
+"""A finger-motion rule measured and not adopted: a hand whose fingers moved more than the
+first figure (°, `finger_motion`) since its previous frame has its gestures faded into
+``none`` in proportion, wholly from the second. What each would cost is printed."""
 
 
 def turn_rotations(n: int, axis: str, deg: float) -> np.ndarray:
@@ -92,23 +102,61 @@ def transitions(frames: mmhgr.Frames, count: int, rng: np.random.Generator,
         ``(x, pairs)``: features on the recorded side, and each hand's "first/second" gestures
         in alphabetical order. Empty when no person shows two gestures.
     """
+    firsts, seconds = transition_ends(frames, count, rng)
+    if not len(firsts):
+        return np.zeros((0, F.N_FEATURES)), np.zeros(0, dtype=str)
+    labels = frames.labels()
+    x = mmhgr.features57(frames.subset(firsts))
+    step = mmhgr.features57(frames.subset(seconds)) - x
+    step[:, F.YAW_FEATURES] = invariant.wrap(step[:, F.YAW_FEATURES])
+    pairs = ["/".join(sorted(pair)) for pair in zip(labels[firsts], labels[seconds], strict=True)]
+    return x + alpha * step, np.array(pairs)
+
+
+def transition_ends(frames: mmhgr.Frames, count: int, rng: np.random.Generator
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Returns the frames a transition goes from and to (`transitions`): two index arrays.
+
+    Each pair is one person's two frames of different gestures, the person drawn first (people
+    with fewer than two gestures are skipped). Empty when no person shows two gestures.
+    """
     labels = frames.labels()
     known = np.flatnonzero(labels != "")
     people = [u for u in np.unique(frames.user[known])
               if len(np.unique(labels[known][frames.user[known] == u])) > 1]
     if not people or count <= 0:
-        return np.zeros((0, F.N_FEATURES)), np.zeros(0, dtype=str)
+        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
     firsts, seconds = [], []
     for u in rng.choice(people, count):
         rows = known[frames.user[known] == u]
         a = rng.choice(rows)
         firsts.append(a)
         seconds.append(rng.choice(rows[labels[rows] != labels[a]]))
-    x = mmhgr.features57(frames.subset(np.array(firsts)))
-    step = mmhgr.features57(frames.subset(np.array(seconds))) - x
-    step[:, F.YAW_FEATURES] = invariant.wrap(step[:, F.YAW_FEATURES])
-    pairs = ["/".join(sorted(pair)) for pair in zip(labels[firsts], labels[seconds], strict=True)]
-    return x + alpha * step, np.array(pairs)
+    return np.array(firsts), np.array(seconds)
+
+
+def finger_motion(frames: mmhgr.Frames) -> np.ndarray:
+    """Returns, per frame, how far its fingers moved since the take's previous kept frame.
+
+    Why: a hand changing pose moves its fingers, a held one should not; whether the service
+    could tell transitions by that depends on how still a tracker holds a held pose. The
+    measure is the root mean square of the change of the 19 angles of `invariant.bends`, in
+    degrees (the same however the hand is turned); the previous frame is the one before in
+    the same person's take of the same pose, at most `MAX_FRAME_GAP` tracker frames earlier.
+
+    Returns:
+        (N,) degrees; NaN where a frame has no previous frame.
+    """
+    bends = np.degrees(invariant.bends(mmhgr.features57(frames)))
+    take = np.char.add(np.char.add(frames.user.astype(str), "/"),
+                       np.char.add(frames.session.astype(str), "/" + frames.pose))
+    order = np.lexsort((frames.frame, take))
+    follows = ((take[order][1:] == take[order][:-1])
+               & (np.diff(frames.frame[order]) <= MAX_FRAME_GAP))
+    step = bends[order][1:] - bends[order][:-1]
+    moved = np.full(len(frames), np.nan)
+    moved[order[1:][follows]] = np.sqrt((step[follows] ** 2).mean(1))
+    return moved
 
 
 def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int = 5,
@@ -144,16 +192,19 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
         probs = clf.predict_features(x_test)
         network = clf.predict_features(x_test, open_set=False)
         parts.append({"frames": sub, "pred": np.array(clf.names)[probs.argmax(1)],
-                      "top": probs.max(1), "held_unknown": np.isin(sub.pose, held_out),
+                      "top": probs.max(1), "probs": probs, "names": clf.names,
+                      "held_unknown": np.isin(sub.pose, held_out),
                       "network": (np.array(clf.names)[network.argmax(1)], network.max(1)),
                       "turned": {name: np.array(clf.names)[clf.predict_features(
                           mmhgr.features57(sub, turn_rotations(len(sub), *turn))).argmax(1)]
                           for name, turn in TURNS.items()}})
-        x_mid, pairs = transitions(sub, TRANSITIONS_PER_PERSON * len(people),
-                                   np.random.default_rng([seed, k]))
+        count = TRANSITIONS_PER_PERSON * len(people)
+        x_mid, pairs = transitions(sub, count, np.random.default_rng([seed, k]))
         mid = clf.predict_features(x_mid) if len(x_mid) else np.zeros((0, len(clf.names)))
         parts[-1]["transitions"] = (pairs, _rejected(np.array(clf.names)[mid.argmax(1)],
                                                      mid.max(1)))
+        parts[-1]["motion"] = (finger_motion(sub), _whole_change(
+            x_test, *transition_ends(sub, count, np.random.default_rng([seed, k]))))
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
@@ -162,6 +213,15 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
     fig.update(folds=len(groups), people=int(len(np.unique(frames.user))),
                seconds=time.monotonic() - t0)
     return fig
+
+
+def _whole_change(x57: np.ndarray, firsts: np.ndarray, seconds: np.ndarray) -> np.ndarray:
+    """Returns how far each transition moves the fingers from its first frame to its second.
+
+    In degrees: the root mean square of the change of `invariant.bends`, as `finger_motion`.
+    """
+    bends = np.degrees(invariant.bends(x57))
+    return np.sqrt(((bends[seconds] - bends[firsts]) ** 2).mean(1))
 
 
 def summarise(parts: list[dict]) -> dict:
@@ -233,6 +293,7 @@ def summarise(parts: list[dict]) -> dict:
         turned[name] = _balanced(turned_correct, label, known, classes)
     return {"classes": classes, "recall": recall,
             "transitions": _transition_figures(parts), "flat_hands": _flat_hands(pose, pred, top),
+            "finger_motion": _motion_figures(parts, label, correct & ~_rejected(pred, top)),
             "balanced_accuracy": float(np.mean(recall)),
             "interval": _people_interval(label[known], pred[known], user[known]),
             # the rejection as a one-class recall: every truth NONE, a rejected frame's answer NONE
@@ -259,6 +320,46 @@ def _transition_figures(parts: list[dict]) -> dict | None:
         return None
     return {"rejected": float(rejected.mean()), "n": int(len(pairs)),
             "per_pair": {str(q): float(rejected[pairs == q].mean()) for q in np.unique(pairs)}}
+
+
+def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> dict | None:
+    """How far held poses' fingers move between kept frames, and what `FINGER_GATES` would do.
+
+    Returns:
+        ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi, share, accuracy}],
+        transitions: {10, 50} percentiles of their whole change (°), gates: [{lo, hi, lost,
+        touched}]}``: ``lost``, the share of the known frames now answered right that a rule
+        would reject (top probability below 0.5 or ``none`` after the fading); ``touched``,
+        the share it would fade at all. None when the parts carry no motion.
+    """
+    if "motion" not in parts[0]:
+        return None
+    moved = np.concatenate([p["motion"][0] for p in parts])
+    whole = np.concatenate([p["motion"][1] for p in parts])
+    probs = [p["probs"] for p in parts]
+    rows = (label != "") & ~np.isnan(moved)
+    if not rows.any():
+        return None
+    by_motion = []
+    for lo, hi in zip(MOTION_BINS[:-1], MOTION_BINS[1:], strict=True):
+        sel = rows & (moved >= lo) & (moved < hi)
+        by_motion.append({"lo": lo, "hi": hi, "share": float(sel.sum() / rows.sum()),
+                          "accuracy": float(right[sel].mean()) if sel.any() else None})
+    gates = []
+    for lo, hi in FINGER_GATES:
+        keep = np.clip((hi - np.nan_to_num(moved)) / (hi - lo), 0.0, 1.0)
+        faded = np.concatenate([fade_into_none(pr, k, p["names"].index(NONE)) for pr, k, p in zip(
+            probs, np.split(keep, np.cumsum([len(pr) for pr in probs])[:-1]), parts,
+            strict=True)])
+        names = np.array(parts[0]["names"])
+        still = ~_rejected(names[faded.argmax(1)], faded.max(1))
+        gates.append({"lo": lo, "hi": hi, "lost": float((right & ~still)[rows].mean()),
+                      "touched": float((keep < 1.0)[rows].mean())})
+    return {"n": int(rows.sum()),
+            "held": {q: float(np.percentile(moved[rows], q)) for q in (50, 95, 99)},
+            "by_motion": by_motion, "gates": gates,
+            "transitions": {q: float(np.percentile(whole, q)) for q in (10, 50)}
+            if len(whole) else None}
 
 
 def _flat_hands(pose: np.ndarray, pred: np.ndarray, top: np.ndarray) -> dict:
@@ -350,6 +451,7 @@ def print_figures(fig: dict) -> None:
         print("  the same frames turned about the palm (balanced accuracy): " + ", ".join(
             f"{name} {a:.2%}" for name, a in fig["turned"].items()))
     _print_unknown_shapes(fig)
+    _print_finger_motion(fig.get("finger_motion"))
     t = fig.get("tracker_agrees")
     if t and t["balanced"] is not None:
         other = t["balanced_otherwise"]
@@ -379,3 +481,22 @@ def _print_unknown_shapes(fig: dict) -> None:
               + "; ".join(f"{FLAT_HAND_NAMES.get(q, q)} five {f['five']:.1%}, rejected "
                           f"{f['rejected']:.1%}, other {f['other']:.1%} (n={f['n']})"
                           for q, f in fig["flat_hands"].items()))
+
+
+def _print_finger_motion(motion: dict | None) -> None:
+    """Prints how far held poses' fingers move between kept frames and what a rule on it costs."""
+    if not motion:
+        return
+    held = motion["held"]
+    print(f"finger motion between a take's kept frames (n={motion['n']}; RMS change of the 19 "
+          f"bends): median {held[50]:.1f}°, 95th percentile {held[95]:.1f}°, 99th "
+          f"{held[99]:.1f}°; answered right by motion: " + "; ".join(
+              f"[{b['lo']:g}, {b['hi']:g})° {b['share']:.1%} of frames "
+              + (f"{b['accuracy']:.1%}" if b["accuracy"] is not None else "-")
+              for b in motion["by_motion"]))
+    if motion["transitions"]:
+        print(f"  a transition's whole change: median {motion['transitions'][50]:.1f}°, "
+              f"10th percentile {motion['transitions'][10]:.1f}°")
+    print("  a rule fading gestures into none as the fingers move (not applied): " + "; ".join(
+        f"from {g['lo']:g}° to {g['hi']:g}° would reject {g['lost']:.2%} of the known frames "
+        f"now answered right (fades {g['touched']:.1%})" for g in motion["gates"]))

@@ -51,6 +51,17 @@ decimal text)."""
 _CHUNK = 2000  # query rows per distance matrix (2000 × 6000 float64: 96 MB)
 
 
+def fade_into_none(probs: np.ndarray, keep: np.ndarray, none_index: int) -> np.ndarray:
+    """Returns (N, C) probabilities with each row's gestures faded into ``none``.
+
+    ``keep`` (N,) in [0, 1] is the share of its gestures' probability a row keeps: 1 keeps the
+    row, 0 makes it ``none``; the rest moves to ``none``, so rows still sum to 1.
+    """
+    out = probs * keep[:, None]
+    out[:, none_index] = probs[:, none_index] + (1.0 - keep) * (1.0 - probs[:, none_index])
+    return out
+
+
 def kth_distance(reference: np.ndarray, query: np.ndarray, k: int,
                  ref_sq: np.ndarray | None = None) -> np.ndarray:
     """Returns each query row's Euclidean distance to its k-th nearest reference row (k ≥ 1).
@@ -153,9 +164,7 @@ class OpenSet:
         far = ~self._near(hidden)
         if far.any():
             keep[far] = np.minimum(1.0, self.p_values(hidden[far]) / self.alpha)
-        out = probs * keep[:, None]
-        out[:, none_index] = probs[:, none_index] + (1.0 - keep) * (1.0 - probs[:, none_index])
-        return out
+        return fade_into_none(probs, keep, none_index)
 
     def _near(self, hidden: np.ndarray) -> np.ndarray:
         """Returns whether each row's k-th nearest reference lies within the keeping line."""

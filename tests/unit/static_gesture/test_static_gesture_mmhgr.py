@@ -225,7 +225,31 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     flat = fig["flat_hands"]["palm_m"]
     assert flat["n"] == 4 * 2
     assert flat["five"] + flat["rejected"] + flat["other"] == pytest.approx(1)
+    # Frames 0 and 1 of each take follow each other: the second of each known take is measured.
+    motion = fig["finger_motion"]
+    assert motion["n"] == 4 * 3 and sum(b["share"] for b in motion["by_motion"]) == \
+        pytest.approx(1)
+    assert [(g["lo"], g["hi"]) for g in motion["gates"]] == list(crossval.FINGER_GATES)
+    assert all(0.0 <= g["lost"] <= g["touched"] <= 1.0 for g in motion["gates"])
+    assert motion["transitions"][10] <= motion["transitions"][50]
     crossval.print_figures(fig)
+
+
+def test_finger_motion_is_the_bends_change_since_the_takes_previous_kept_frame(tmp_path):
+    write_dataset(tmp_path / "src", people=(1,), poses=("five", "up"), per_pose=3)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    moved = crossval.finger_motion(frames)
+    first = frames.frame == 0
+    assert np.isnan(moved[first]).all() and not np.isnan(moved[~first]).any()
+    bends = np.degrees(invariant.bends(mmhgr.features57(frames)))
+    for i in np.flatnonzero(~first):  # against the same take's frame before
+        j = np.flatnonzero((frames.pose == frames.pose[i]) & (frames.frame == frames.frame[i] - 1))
+        assert moved[i] == pytest.approx(np.sqrt(np.mean((bends[i] - bends[j[0]]) ** 2)))
+    # a frame too far after the one before is not its follower: a new stretch of the take
+    far = frames.subset(np.argsort(frames.frame))
+    far.frame[far.frame == 2] = 2 + crossval.MAX_FRAME_GAP + 1
+    assert np.isnan(crossval.finger_motion(far)[far.frame > 2]).all()
 
 
 def test_a_transition_lies_between_two_gestures_of_one_person(tmp_path):
