@@ -326,7 +326,8 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     """How far held poses' fingers move between kept frames, and what `FINGER_GATES` would do.
 
     Returns:
-        ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi, share, accuracy}],
+        ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi (None: no bound), share,
+        accuracy}],
         transitions: {10, 50} percentiles of their whole change (°), gates: [{lo, hi, lost,
         touched}]}``: ``lost``, the share of the known frames now answered right that a rule
         would reject (top probability below 0.5 or ``none`` after the fading); ``touched``,
@@ -343,7 +344,8 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     by_motion = []
     for lo, hi in zip(MOTION_BINS[:-1], MOTION_BINS[1:], strict=True):
         sel = rows & (moved >= lo) & (moved < hi)
-        by_motion.append({"lo": lo, "hi": hi, "share": float(sel.sum() / rows.sum()),
+        by_motion.append({"lo": lo, "hi": None if np.isinf(hi) else hi,
+                          "share": float(sel.sum() / rows.sum()),
                           "accuracy": float(right[sel].mean()) if sel.any() else None})
     gates = []
     for lo, hi in FINGER_GATES:
@@ -491,7 +493,8 @@ def _print_finger_motion(motion: dict | None) -> None:
     print(f"finger motion between a take's kept frames (n={motion['n']}; RMS change of the 19 "
           f"bends): median {held[50]:.1f}°, 95th percentile {held[95]:.1f}°, 99th "
           f"{held[99]:.1f}°; answered right by motion: " + "; ".join(
-              f"[{b['lo']:g}, {b['hi']:g})° {b['share']:.1%} of frames "
+              f"[{b['lo']:g}, {'∞' if b['hi'] is None else format(b['hi'], 'g')})° "
+              f"{b['share']:.1%} of frames "
               + (f"{b['accuracy']:.1%}" if b["accuracy"] is not None else "-")
               for b in motion["by_motion"]))
     if motion["transitions"]:
