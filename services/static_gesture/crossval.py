@@ -365,7 +365,12 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
 
 
 def _flat_hands(pose: np.ndarray, pred: np.ndarray, top: np.ndarray) -> dict:
-    """Per flat-hand pose present: ``{n, five, rejected, other}`` shares of the answers."""
+    """Per flat-hand pose present: the shares of its answers.
+
+    Returns:
+        ``{pose: {n, five, rejected, other, most_other}}``: ``most_other`` is the other gesture
+        answered most and its share, None when there is none.
+    """
     rejected = _rejected(pred, top)
     out = {}
     for q in mmhgr.AMBIGUOUS:
@@ -373,8 +378,12 @@ def _flat_hands(pose: np.ndarray, pred: np.ndarray, top: np.ndarray) -> dict:
         if sel.any():
             five = float((~rejected[sel] & (pred[sel] == "five")).mean())
             refused = float(rejected[sel].mean())
+            others = pred[sel & ~rejected & (pred != "five")]
+            names, counts = np.unique(others, return_counts=True)
             out[q] = {"n": int(sel.sum()), "five": five, "rejected": refused,
-                      "other": 1.0 - five - refused}
+                      "other": 1.0 - five - refused,
+                      "most_other": [str(names[counts.argmax()]), float(counts.max() / sel.sum())]
+                      if len(others) else None}
     return out
 
 
@@ -481,7 +490,9 @@ def _print_unknown_shapes(fig: dict) -> None:
     if fig.get("flat_hands"):
         print("flat open hands, fingers together (trained neither as five nor as none): "
               + "; ".join(f"{FLAT_HAND_NAMES.get(q, q)} five {f['five']:.1%}, rejected "
-                          f"{f['rejected']:.1%}, other {f['other']:.1%} (n={f['n']})"
+                          f"{f['rejected']:.1%}, other {f['other']:.1%}"
+                          + (f" (most {f['most_other'][0]} {f['most_other'][1]:.1%})"
+                             if f["most_other"] else "") + f" (n={f['n']})"
                           for q, f in fig["flat_hands"].items()))
 
 

@@ -225,6 +225,11 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     flat = fig["flat_hands"]["palm_m"]
     assert flat["n"] == 4 * 2
     assert flat["five"] + flat["rejected"] + flat["other"] == pytest.approx(1)
+    if flat["other"] > 0:  # which gesture the others mostly are, and no more than all of them
+        assert flat["most_other"][0] not in ("five", "none")
+        assert 0 < flat["most_other"][1] <= flat["other"] + 1e-9
+    else:
+        assert flat["most_other"] is None
     # Frames 0 and 1 of each take follow each other: the second of each known take is measured.
     motion = fig["finger_motion"]
     assert motion["n"] == 4 * 3 and sum(b["share"] for b in motion["by_motion"]) == \
