@@ -92,9 +92,8 @@ class FoxgloveBridge(Service):
                               "bridge running? choose another --ws-port") from None
         ctx.log.info("Foxglove WebSocket server on ws://%s:%d (open it in Foxglove: "
                      "Open connection > Foxglove WebSocket)", s.ws_host, self.server.port)
-        for topic in keys.TOPICS.values():
-            if not topic.query:
-                ctx.subscribe(topic, lambda msg, t=topic: self.on_message(t, msg))
+        for topic in keys.DATA_TOPICS:
+            ctx.subscribe(topic, lambda msg, t=topic: self.on_message(t, msg))
 
     def _open_channels(self, foxglove, context, names: keys.Keys) -> None:
         schemas = {names.of(t): wire_schema(names, names.of(t))

@@ -34,7 +34,6 @@ from cbgo.services.web.server import HttpServer
 from cbgo.services.web.views import Views, to_json
 from cbgo.world.workspace import workspace_info
 
-WATCHED = [t for t in keys.TOPICS.values() if not t.query]
 MAX_EPISODES = 1000  # episode -> user entries kept for feedback
 
 
@@ -91,7 +90,7 @@ class Web(Service):
             ConfigError: the HTTP address cannot be bound (the process exits with code 2).
         """
         self.ctx = ctx
-        for topic in WATCHED:
+        for topic in keys.DATA_TOPICS:
             ctx.subscribe(topic, lambda msg, suffix=topic.suffix: self.forward(suffix, msg))
         ctx.publishes(keys.ROBOT_STOP, keys.INTENT_FEEDBACK)
         self.server = HttpServer(self.settings.http_host, self.settings.http_port, self.info,

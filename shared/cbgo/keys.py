@@ -101,6 +101,8 @@ TOPICS: dict[str, Topic] = {
         ROBOT_STATE, ROBOT_STOP, PLAN_STATUS, SIM_RESET, SIM_RENDER, SIM_INFO,
     )
 }
+DATA_TOPICS: tuple[Topic, ...] = tuple(t for t in TOPICS.values() if not t.query)
+"""Every key that carries data (no query): what a viewer of the whole system subscribes to."""
 
 _CHUNK = re.compile(r"^[A-Za-z0-9_.\-]+$")
 _SERVICE = re.compile(r"^[a-z][a-z0-9\-]*$")
