@@ -140,22 +140,21 @@ def finger_motion(frames: mmhgr.Frames) -> np.ndarray:
 
     Why: a hand changing pose moves its fingers, a held one should not; whether the service
     could tell transitions by that depends on how still a tracker holds a held pose. The
-    measure is the root mean square of the change of the 19 angles of `invariant.bends`, in
-    degrees (the same however the hand is turned); the previous frame is the one before in
-    the same person's take of the same pose, at most `MAX_FRAME_GAP` tracker frames earlier.
+    measure is `invariant.finger_change`; the previous frame is the one before in the same
+    person's take of the same pose, at most `MAX_FRAME_GAP` tracker frames earlier.
 
     Returns:
         (N,) degrees; NaN where a frame has no previous frame.
     """
-    bends = np.degrees(invariant.bends(mmhgr.features57(frames)))
+    bends = invariant.bends(mmhgr.features57(frames))
     take = np.char.add(np.char.add(frames.user.astype(str), "/"),
                        np.char.add(frames.session.astype(str), "/" + frames.pose))
     order = np.lexsort((frames.frame, take))
     follows = ((take[order][1:] == take[order][:-1])
                & (np.diff(frames.frame[order]) <= MAX_FRAME_GAP))
-    step = bends[order][1:] - bends[order][:-1]
     moved = np.full(len(frames), np.nan)
-    moved[order[1:][follows]] = np.sqrt((step[follows] ** 2).mean(1))
+    moved[order[1:][follows]] = invariant.finger_change(bends[order][:-1][follows],
+                                                        bends[order][1:][follows])
     return moved
 
 
@@ -218,10 +217,10 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
 def _whole_change(x57: np.ndarray, firsts: np.ndarray, seconds: np.ndarray) -> np.ndarray:
     """Returns how far each transition moves the fingers from its first frame to its second.
 
-    In degrees: the root mean square of the change of `invariant.bends`, as `finger_motion`.
+    In degrees, by `invariant.finger_change`, as `finger_motion`.
     """
-    bends = np.degrees(invariant.bends(x57))
-    return np.sqrt(((bends[seconds] - bends[firsts]) ** 2).mean(1))
+    bends = invariant.bends(x57)
+    return invariant.finger_change(bends[firsts], bends[seconds])
 
 
 def summarise(parts: list[dict]) -> dict:

@@ -173,6 +173,15 @@ def bends(x57: np.ndarray) -> np.ndarray:
     return np.concatenate([bent, spread], 1)
 
 
+
+def finger_change(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """Returns how far the fingers moved between two `bends` rows (..., 19) rad: degrees.
+
+    The root mean square change of the 19 angles: one number per hand that reads the same
+    however the hand is turned, and that a held pose keeps near 0.
+    """
+    return np.degrees(np.sqrt(((np.asarray(after) - np.asarray(before)) ** 2).mean(-1)))
+
 def names_of(name: str) -> tuple[str, ...]:
     """Returns the feature names of a feature set named in `TRANSFORMS`."""
     if name == TRANSFORM_BENDS:

@@ -15,6 +15,10 @@ Rules:
   ``horns``...), is an unknown pose: right where the frame is rejected (``none`` on top or top
   p < 0.5), as the episode service reads it.
 - Messages that break the ``hands/frame`` contract are counted and skipped, never scored.
+- How still the tracker holds the pose: per hand, how far its fingers moved in the last
+  `MOTION_WINDOW_S` (`invariant.finger_change`, by its tracking id), reported as percentiles:
+  a rule on finger motion (README: "Fingers that move") could only work with a tracker that
+  holds a held pose still.
 
 Example::
 
@@ -33,10 +37,14 @@ import numpy as np
 
 from cbgo import keys, wire
 from cbgo.errors import RecordingError, RejectedMessage
+from cbgo.hands import features as F
 from cbgo.recording import read_recording
+from cbgo.services.static_gesture import invariant
 from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW, StaticClassifier
 
 FRAMES_KEY = "**/" + keys.HANDS_FRAME.suffix
+MOTION_WINDOW_S = 0.1
+"""How far back a hand's fingers are compared (`finger_motion`), seconds of frame time."""
 
 
 @dataclass
@@ -51,6 +59,7 @@ class TakeScore:
     answers: Counter = field(default_factory=Counter)  # top answer ("none" when rejected)
     skipped: int = 0  # messages that break the contract
     top_p: list[float] = field(default_factory=list)
+    motion: list[float] = field(default_factory=list)  # `finger_motion`, where measured
 
     @property
     def share(self) -> float:
@@ -70,14 +79,17 @@ def parse_take(spec: str) -> tuple[str, Path]:
     return label.strip(), Path(path.strip())
 
 
-def take_hands(path: Path) -> tuple[list[dict], int]:
-    """Returns the hands of a recording's valid ``hands/frame`` messages and the skipped count.
+def take_hands(path: Path) -> tuple[list[dict], list[float], int]:
+    """Returns a recording's valid ``hands/frame`` hands, their frame times, the skipped count.
+
+    Every hand of a valid message, each with its frame's ``ts``; a message that breaks the
+    contract is counted and skipped.
 
     Raises:
         RecordingError: the file is missing or no MCAP recording.
     """
     spec = keys.HANDS_FRAME.schema
-    hands, skipped = [], 0
+    hands, stamps, skipped = [], [], 0
     for recorded in read_recording(path, FRAMES_KEY):
         try:
             message = wire.decode_checked(recorded.payload, spec, recorded.key)
@@ -85,12 +97,36 @@ def take_hands(path: Path) -> tuple[list[dict], int]:
             skipped += 1
             continue
         hands += message["hands"]
-    return hands, skipped
+        stamps += [float(message["ts"])] * len(message["hands"])
+    return hands, stamps, skipped
+
+
+def finger_motion(hands: list[dict], stamps: list[float],
+                  window_s: float = MOTION_WINDOW_S) -> np.ndarray:
+    """Returns, per hand, how far its fingers moved since ``window_s`` before (degrees).
+
+    The hand is followed by its side and tracking id; it is compared with its latest frame at
+    least ``window_s`` older (`invariant.finger_change`). NaN where there is none: the hand's
+    first ``window_s``.
+    """
+    moved = np.full(len(hands), np.nan)
+    if not hands:
+        return moved
+    bends = invariant.bends(F.hands_features(hands, to_recorded_side=True))
+    t = np.asarray(stamps, dtype=np.float64)
+    track = np.array([f"{h['side']}/{h['id']}" for h in hands])
+    for name in np.unique(track):
+        rows = np.flatnonzero(track == name)
+        rows = rows[np.argsort(t[rows], kind="stable")]
+        before = np.searchsorted(t[rows], t[rows] - window_s, side="right") - 1
+        has = before >= 0
+        moved[rows[has]] = invariant.finger_change(bends[rows[before[has]]], bends[rows[has]])
+    return moved
 
 
 def score_take(classifier: StaticClassifier, label: str, path: Path) -> TakeScore:
     """Scores every hand of a take (see the module docstring for what counts as right)."""
-    hands, skipped = take_hands(path)
+    hands, stamps, skipped = take_hands(path)
     unknown = label == NONE or label not in classifier.names
     score = TakeScore(label, str(path), unknown, skipped=skipped)
     if not hands:
@@ -99,6 +135,9 @@ def score_take(classifier: StaticClassifier, label: str, path: Path) -> TakeScor
     finite = np.isfinite(probs).all(1)
     score.skipped += int((~finite).sum())
     probs = probs[finite]
+    motion = finger_motion([h for h, ok in zip(hands, finite, strict=True) if ok],
+                           [t for t, ok in zip(stamps, finite, strict=True) if ok])
+    score.motion = motion[~np.isnan(motion)].tolist()
     top = probs.argmax(1)
     names = np.array(classifier.names)[top]
     top_p = probs.max(1)
@@ -140,7 +179,9 @@ def figures(scores: list[TakeScore]) -> dict:
     return {"per_take": [{"label": s.label, "path": s.path, "unknown": s.unknown,
                           "hands": s.hands, "right": s.right, "share": s.share,
                           "skipped": s.skipped, "answers": dict(s.answers.most_common()),
-                          "median_top_p": float(np.median(s.top_p)) if s.top_p else None}
+                          "median_top_p": float(np.median(s.top_p)) if s.top_p else None,
+                          "finger_motion": {q: float(np.percentile(s.motion, q))
+                                            for q in (50, 95, 99)} if s.motion else None}
                          for s in scores],
             **summary(scores)}
 
@@ -156,8 +197,11 @@ def print_figures(fig: dict, model_id: str, title: str = "recorded takes") -> No
         median = (f"; median top p {take['median_top_p']:.2f}"
                   if take["median_top_p"] is not None else "")
         skipped = f"; {take['skipped']} skipped (broke the contract)" if take["skipped"] else ""
+        moved = take.get("finger_motion")
+        moved = (f"; fingers moved in {MOTION_WINDOW_S:g} s: median {moved[50]:.1f}°, 95th "
+                 f"percentile {moved[95]:.1f}°, 99th {moved[99]:.1f}°" if moved else "")
         print(f"  {take['label']:10} {take['path']}: {take['hands']} hands, {what} "
-              f"{take['share']:.1%} (answers: {answers or 'none'}{median}){skipped}")
+              f"{take['share']:.1%} (answers: {answers or 'none'}{median}){skipped}{moved}")
     for key, text in (("known", "known gestures, frames right"),
                       ("unknown_rejected", "unknown poses, frames rejected")):
         if fig[key] is not None:

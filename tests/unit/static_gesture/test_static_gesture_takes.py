@@ -88,8 +88,10 @@ def test_the_bench_scores_takes_and_says_what_is_wrong(tmp_path, capsys):
     assert bench.run(parser.parse_args(["--takes", f"five={five}", "--json", str(out)])) == 0
     printed = capsys.readouterr().out
     assert "five" in printed and "known gestures, frames right" in printed
+    assert "fingers moved in 0.1 s" in printed  # 12 frames 10 ms apart: the last two measured
     fig = json.loads(out.read_text())
     assert fig["takes"]["per_take"][0]["hands"] == 12 and fig["takes"]["known"] >= 0.9
+    assert set(fig["takes"]["per_take"][0]["finger_motion"]) == {"50", "95", "99"}
     assert bench.run(parser.parse_args(["--takes", f"five={tmp_path / 'no.mcap'}"])) == 2
     assert "no such file" in capsys.readouterr().out
     (tmp_path / "junk.mcap").write_bytes(b"not an mcap")
@@ -99,3 +101,21 @@ def test_the_bench_scores_takes_and_says_what_is_wrong(tmp_path, capsys):
 def test_a_missing_file_is_refused_before_scoring(tmp_path, shipped):
     with pytest.raises(RecordingError, match="no such file"):
         takes.score_takes(shipped, [f"five={tmp_path / 'absent.mcap'}"])
+
+
+def test_finger_motion_follows_each_hand_by_its_id_over_the_window():
+    # Two hands 10 ms apart for 0.3 s: hand 1 holds five, hand 2 closes from five to a fist.
+    shape = HandShape.sample(np.random.default_rng(1), side="right")
+    five, grab = gesture_mean("five").to_vector(), gesture_mean("grab").to_vector()
+    palm = np.array([0.0, 200.0, 0.0])
+    hands, stamps = [], []
+    for i in range(30):
+        held = build_hand(shape, HandPose.from_vector(five), palm)
+        closing = build_hand(shape, HandPose.from_vector(five + (grab - five) * i / 29), palm)
+        held["id"], closing["id"] = 1, 2
+        hands += [held, closing]
+        stamps += [i * 0.01] * 2
+    moved = takes.finger_motion(hands, stamps).reshape(30, 2)
+    assert np.isnan(moved[:10]).all() and not np.isnan(moved[10:]).any()  # the first 0.1 s
+    assert moved[10:, 0].max() < 1e-6 and moved[10:, 1].min() > 5.0
+    assert np.isnan(takes.finger_motion(hands[1::2], stamps[1::2], window_s=1.0)).all()
