@@ -39,9 +39,10 @@ from cbgo import metrics
 from cbgo.hands import features as F
 from cbgo.hands.data import load_real_features
 from cbgo.hands.model import rotation
-from cbgo.services.static_gesture import invariant, mmhgr, train
+from cbgo.services.static_gesture import invariant, mmhgr, motion, train
 from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW
 from cbgo.services.static_gesture.openset import fade_into_none
+from cbgo.simuser.motion import min_jerk
 from cbgo.wire import STATIC_GESTURES
 
 POSE_HALVES = (("hang", "down"), ("C", "L", "heavy"))
@@ -62,10 +63,16 @@ MAX_FRAME_GAP = 25
 (`finger_motion`; the set keeps one tracker frame in about 13, and stamps no time)."""
 MOTION_BINS = (0.0, 4.0, 8.0, 16.0, 32.0, np.inf)
 """Bins of a frame's finger motion (°, `finger_motion`) for the accuracy by motion."""
-FINGER_GATES = ((10.0, 20.0), (15.0, 30.0), (20.0, 40.0))
-"""A finger-motion rule measured and not adopted: a hand whose fingers moved more than the
-first figure (°, `finger_motion`) since its previous frame has its gestures faded into
-``none`` in proportion, wholly from the second. What each would cost is printed."""
+FINGER_GATES = ((motion.STILL_DEG, motion.MOVING_DEG), (15.0, 30.0), (20.0, 40.0))
+"""Lines of the service's finger-motion rule (`motion`; the first pair is its default): a
+hand whose fingers moved more than the first figure (°) has its gestures faded into ``none``
+in proportion, wholly from the second. What each costs the held poses is printed."""
+TIMED_PER_PERSON = 40
+"""Transitions played over time per held-out person (`timed_transitions`)."""
+TRANSITION_S = (0.25, 0.6)
+"""How long a hand takes to change pose, seconds (drawn uniformly per transition)."""
+TIMED_RATE_HZ = 60.0
+"""The frame rate the timed transitions are sampled at (a tracker's lowest usual rate)."""
 
 
 def turn_rotations(n: int, axis: str, deg: float) -> np.ndarray:
@@ -111,6 +118,35 @@ def transitions(frames: mmhgr.Frames, count: int, rng: np.random.Generator,
     step[:, F.YAW_FEATURES] = invariant.wrap(step[:, F.YAW_FEATURES])
     pairs = ["/".join(sorted(pair)) for pair in zip(labels[firsts], labels[seconds], strict=True)]
     return x + alpha * step, np.array(pairs)
+
+
+def timed_transitions(frames: mmhgr.Frames, count: int, rng: np.random.Generator
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Returns the hands of ``count`` transitions as a tracker reports them over time.
+
+    Why: the midway hands of `transitions` are single frames; the service also sees how fast
+    a hand's fingers move (`motion`). Each transition goes from one of a person's gesture
+    frames to one of another gesture (`transition_ends`), every joint following one
+    minimum-jerk profile over `TRANSITION_S`, sampled at `TIMED_RATE_HZ` strictly between the
+    two held poses (the held frames themselves are not transitions).
+
+    Returns:
+        ``(now, before)``: (M, 57) features of every sampled hand, and of the same hand
+        `motion.WINDOW_S` earlier (the held first pose before the change began).
+    """
+    firsts, seconds = transition_ends(frames, count, rng)
+    if not len(firsts):
+        return np.zeros((0, F.N_FEATURES)), np.zeros((0, F.N_FEATURES))
+    x_from = mmhgr.features57(frames.subset(firsts))
+    step = mmhgr.features57(frames.subset(seconds)) - x_from
+    step[:, F.YAW_FEATURES] = invariant.wrap(step[:, F.YAW_FEATURES])
+    now, before = [], []
+    for start, change, seconds_long in zip(x_from, step, rng.uniform(*TRANSITION_S, len(step)),
+                                           strict=True):
+        t = np.arange(1, int(np.ceil(seconds_long * TIMED_RATE_HZ))) / TIMED_RATE_HZ
+        now.append(start + min_jerk(t / seconds_long)[:, None] * change)
+        before.append(start + min_jerk((t - motion.WINDOW_S) / seconds_long)[:, None] * change)
+    return np.concatenate(now), np.concatenate(before)
 
 
 def transition_ends(frames: mmhgr.Frames, count: int, rng: np.random.Generator
@@ -204,6 +240,8 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
                                                      mid.max(1)))
         parts[-1]["motion"] = (finger_motion(sub), _whole_change(
             x_test, *transition_ends(sub, count, np.random.default_rng([seed, k]))))
+        parts[-1]["timed"] = _timed_rejection(clf, *timed_transitions(
+            sub, TIMED_PER_PERSON * len(people), np.random.default_rng([seed, k, 1])))
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
@@ -221,6 +259,23 @@ def _whole_change(x57: np.ndarray, firsts: np.ndarray, seconds: np.ndarray) -> n
     """
     bends = invariant.bends(x57)
     return invariant.finger_change(bends[firsts], bends[seconds])
+
+
+def _timed_rejection(clf, now: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Returns whether each timed transition hand is rejected, per rule.
+
+    First by the model alone (each frame read alone), then with the service's finger-motion
+    rule at each of `FINGER_GATES`.
+    """
+    probs = clf.predict_features(now) if len(now) else np.zeros((0, len(clf.names)))
+    names = np.array(clf.names)
+    moved = invariant.finger_change(invariant.bends(before), invariant.bends(now)) \
+        if len(now) else np.zeros(0)
+    out = [_rejected(names[probs.argmax(1)], probs.max(1))]
+    for lo, hi in FINGER_GATES:
+        faded = fade_into_none(probs, motion.keep_share(moved, lo, hi), clf.names.index(NONE))
+        out.append(_rejected(names[faded.argmax(1)], faded.max(1)))
+    return tuple(out)
 
 
 def summarise(parts: list[dict]) -> dict:
@@ -326,11 +381,12 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
 
     Returns:
         ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi (None: no bound), share,
-        accuracy}],
-        transitions: {10, 50} percentiles of their whole change (°), gates: [{lo, hi, lost,
-        touched}]}``: ``lost``, the share of the known frames now answered right that a rule
-        would reject (top probability below 0.5 or ``none`` after the fading); ``touched``,
-        the share it would fade at all. None when the parts carry no motion.
+        accuracy}], transitions: {10, 50} percentiles of their whole change (°), timed: {n,
+        rejected_alone}, gates: [{lo, hi, lost, touched, timed_rejected}]}``: ``lost``, the
+        share of the known frames answered right frame by frame that a rule rejects (top
+        probability below 0.5 or ``none`` after the fading); ``touched``, the share it fades
+        at all; ``timed_rejected``, the timed transitions' hands (`timed_transitions`) it
+        rejects, against ``rejected_alone`` without it. None when the parts carry no motion.
     """
     if "motion" not in parts[0]:
         return None
@@ -348,7 +404,7 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
                           "accuracy": float(right[sel].mean()) if sel.any() else None})
     gates = []
     for lo, hi in FINGER_GATES:
-        keep = np.clip((hi - np.nan_to_num(moved)) / (hi - lo), 0.0, 1.0)
+        keep = motion.keep_share(moved, lo, hi)
         faded = np.concatenate([fade_into_none(pr, k, p["names"].index(NONE)) for pr, k, p in zip(
             probs, np.split(keep, np.cumsum([len(pr) for pr in probs])[:-1]), parts,
             strict=True)])
@@ -356,7 +412,14 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
         still = ~_rejected(names[faded.argmax(1)], faded.max(1))
         gates.append({"lo": lo, "hi": hi, "lost": float((right & ~still)[rows].mean()),
                       "touched": float((keep < 1.0)[rows].mean())})
+    timed = [np.concatenate(rule) for rule in zip(*(p["timed"] for p in parts), strict=True)] \
+        if "timed" in parts[0] else []
+    if timed and len(timed[0]):
+        for gate, rejected in zip(gates, timed[1:], strict=True):
+            gate["timed_rejected"] = float(rejected.mean())
     return {"n": int(rows.sum()),
+            "timed": {"n": int(len(timed[0])), "rejected_alone": float(timed[0].mean())}
+            if timed and len(timed[0]) else None,
             "held": {q: float(np.percentile(moved[rows], q)) for q in (50, 95, 99)},
             "by_motion": by_motion, "gates": gates,
             "transitions": {q: float(np.percentile(whole, q)) for q in (10, 50)}
@@ -495,21 +558,29 @@ def _print_unknown_shapes(fig: dict) -> None:
                           for q, f in fig["flat_hands"].items()))
 
 
-def _print_finger_motion(motion: dict | None) -> None:
+def _print_finger_motion(fig: dict | None) -> None:
     """Prints how far held poses' fingers move between kept frames and what a rule on it costs."""
-    if not motion:
+    if not fig:
         return
-    held = motion["held"]
-    print(f"finger motion between a take's kept frames (n={motion['n']}; RMS change of the 19 "
+    held = fig["held"]
+    print(f"finger motion between a take's kept frames (n={fig['n']}; RMS change of the 19 "
           f"bends): median {held[50]:.1f}°, 95th percentile {held[95]:.1f}°, 99th "
           f"{held[99]:.1f}°; answered right by motion: " + "; ".join(
               f"[{b['lo']:g}, {'∞' if b['hi'] is None else format(b['hi'], 'g')})° "
               f"{b['share']:.1%} of frames "
               + (f"{b['accuracy']:.1%}" if b["accuracy"] is not None else "-")
-              for b in motion["by_motion"]))
-    if motion["transitions"]:
-        print(f"  a transition's whole change: median {motion['transitions'][50]:.1f}°, "
-              f"10th percentile {motion['transitions'][10]:.1f}°")
-    print("  a rule fading gestures into none as the fingers move (not applied): " + "; ".join(
-        f"from {g['lo']:g}° to {g['hi']:g}° would reject {g['lost']:.2%} of the known frames "
-        f"now answered right (fades {g['touched']:.1%})" for g in motion["gates"]))
+              for b in fig["by_motion"]))
+    if fig["transitions"]:
+        print(f"  a transition's whole change: median {fig['transitions'][50]:.1f}°, "
+              f"10th percentile {fig['transitions'][10]:.1f}°")
+    timed = fig.get("timed")
+    if timed:
+        print(f"  hands changing pose over {TRANSITION_S[0]:g}-{TRANSITION_S[1]:g} s, "
+              f"{TIMED_RATE_HZ:g} Hz (n={timed['n']}): {timed['rejected_alone']:.1%} rejected "
+              "frame by frame")
+    print("  the service's rule, gestures fading into none as the fingers move (first: its "
+          "default lines): " + "; ".join(
+              f"{g['lo']:g}°-{g['hi']:g}° rejects {g['lost']:.2%} of the known frames answered "
+              f"right frame by frame (fades {g['touched']:.1%})"
+              + (f", and {g['timed_rejected']:.1%} of the changing hands"
+                 if "timed_rejected" in g else "") for g in fig["gates"]))

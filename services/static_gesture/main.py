@@ -8,6 +8,9 @@ Behaviour (the contract is services/static_gesture/README.md):
   ``side`` the hand's, ``names``/``probs`` the model's full vector (with ``none``, the no-gesture
   class, when the model has it), ``model`` its id. There is no threshold: an uncertain hand
   gets its honest, flat vector. A frame with no hand gives no message;
+- a hand whose fingers are moving is a pose forming, not held: each hand is followed by its
+  side and id, and when its fingers moved more than ``--still-deg`` in the last 0.1 s its
+  gestures fade into ``none``, wholly from ``--moving-deg`` (`motion`; 0 turns it off);
 - the model: ``--model PATH``, else the user's model (``data_dir()/models/static-gesture``, what
   ``cbgo train static`` and ``cbgo gestures record`` write) if it exists, else the one shipped
   in the package. A model that does not load at start is a configuration error (exit 2);
@@ -29,15 +32,19 @@ import numpy as np
 from cbgo import keys, wire
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
+from cbgo.hands import features as F
 from cbgo.model_store import WATCH_HELP, ModelStore, model_help
 from cbgo.runtime import Service, main_for
+from cbgo.services.static_gesture import invariant, motion
 from cbgo.services.static_gesture.classifier import (
     DEFAULT_SAMPLES,
     MODEL_SUFFIXES,
+    NONE,
     StaticClassifier,
     shipped_model_path,
     user_model_path,
 )
+from cbgo.services.static_gesture.openset import fade_into_none
 
 
 @dataclass
@@ -49,12 +56,21 @@ class StaticGestureSettings:
     samples: int = field(default=DEFAULT_SAMPLES, metadata=_help(
         "posterior samples averaged per prediction, all the ensemble's networks together"))
     watch_s: float = field(default=1.0, metadata=_help(WATCH_HELP))
+    still_deg: float = field(default=motion.STILL_DEG, metadata=_help(
+        "a hand whose fingers moved less than this in the last 0.1 s keeps its answer "
+        "(degrees, RMS over its 19 joint angles); more fades its gestures into none"))
+    moving_deg: float = field(default=motion.MOVING_DEG, metadata=_help(
+        "a hand whose fingers moved this much in the last 0.1 s is none: a pose forming, "
+        "not held (degrees; 0: off, every frame read alone)"))
 
     def __post_init__(self):
         if not 1 <= self.samples <= 1024:
             raise ConfigError(f"samples={self.samples} must be within 1-1024")
         if self.watch_s < 0:
             raise ConfigError(f"watch_s={self.watch_s} must be 0 (off) or positive")
+        if self.moving_deg != 0 and not 0 <= self.still_deg < self.moving_deg:
+            raise ConfigError(f"still_deg={self.still_deg} and moving_deg={self.moving_deg}: "
+                              "need 0 <= still_deg < moving_deg, or moving_deg 0 (off)")
 
 
 class StaticGesture(Service):
@@ -70,6 +86,8 @@ class StaticGesture(Service):
         self.classifier: StaticClassifier | None = None
         self.store: ModelStore | None = None
         self.hands = 0
+        self.motion = motion.FingerMotion()
+        self.moving = 0  # hands whose gestures faded for their fingers' motion
 
     def setup(self, ctx) -> None:
         """Called once before the service is announced alive: loads the model, declares I/O.
@@ -100,18 +118,33 @@ class StaticGesture(Service):
         hands = msg["hands"]
         if not hands:
             return []
-        probs = self.classifier.classify_hands(hands)
+        x = F.hands_features(hands, to_recorded_side=True)
+        probs = self.classifier.predict_features(x)
         ok = np.isfinite(probs).all(1)
         if not ok.all():  # degenerate geometry; the wire check cannot see it
             self.ctx.counters.add("rejected", int((~ok).sum()))
             self.ctx.rejects.warning("features", f"frame {msg['seq']}: a hand's features are "
                                      "not finite; hand skipped")
+        if ok.any():
+            probs[ok] = self._fade_moving([h for h, good in zip(hands, ok, strict=True) if good],
+                                          msg["ts"], x[ok], probs[ok])
         self.hands += len(hands)
         clf = self.classifier
         return [(keys.GESTURES_STATIC, keys.GESTURES_STATIC.message(ts=msg["ts"], seq=msg["seq"],
             hand_id=hand["id"], side=hand["side"], names=clf.names,
             probs=row.tolist(), model=clf.model_id))
             for hand, row, good in zip(hands, probs, ok, strict=True) if good]
+
+    def _fade_moving(self, hands: list[dict], ts: float, x57: np.ndarray, probs: np.ndarray
+                     ) -> np.ndarray:
+        """Returns the probabilities with moving hands' gestures faded into ``none``."""
+        s = self.settings
+        if s.moving_deg <= 0 or NONE not in self.classifier.names:
+            return probs
+        moved = self.motion.measure(hands, ts, invariant.bends(x57))
+        keep = motion.keep_share(moved, s.still_deg, s.moving_deg)
+        self.moving += int((keep < 1.0).sum())
+        return fade_into_none(probs, keep, self.classifier.names.index(NONE))
 
     def on_reload(self, query: dict) -> dict:
         """Called for each ``reload`` query: loads the model again (or ``{model: PATH}``).
@@ -152,9 +185,9 @@ class StaticGesture(Service):
                           classifier.model_id, path)
 
     def status_extra(self) -> dict:
-        """Adds the model in service and the number of hands classified."""
+        """Adds the model in service, the hands classified and those faded for moving."""
         return {"model": self.classifier.describe() if self.classifier else None,
-                "hands_classified": self.hands}
+                "hands_classified": self.hands, "hands_moving": self.moving}
 
 
 main = main_for(StaticGesture)

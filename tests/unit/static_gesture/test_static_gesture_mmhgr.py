@@ -7,7 +7,7 @@ import pytest
 from cbgo.hands import features as F
 from cbgo.hands.model import HandShape, build_hand
 from cbgo.hands.poses import gesture_pose
-from cbgo.services.static_gesture import crossval, invariant, mmhgr, train
+from cbgo.services.static_gesture import crossval, invariant, mmhgr, motion, train
 
 _POINTS = ("mcpPosition", "pipPosition", "dipPosition", "TipPosition")
 
@@ -237,6 +237,10 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert [(g["lo"], g["hi"]) for g in motion["gates"]] == list(crossval.FINGER_GATES)
     assert all(0.0 <= g["lost"] <= g["touched"] <= 1.0 for g in motion["gates"])
     assert motion["transitions"][10] <= motion["transitions"][50]
+    # hands changing pose over time: the rule can only add to what the model rejects
+    assert motion["timed"]["n"] > 4 * crossval.TIMED_PER_PERSON
+    assert all(motion["timed"]["rejected_alone"] <= g["timed_rejected"] <= 1.0
+               for g in motion["gates"])
     crossval.print_figures(fig)
 
 
@@ -376,3 +380,23 @@ def test_spliced_hands_train_none_when_asked(tmp_path):
                             rng)
     assert len(more[1]) == len(plain[1]) + 7
     assert more[1][-7:].tolist() == [2] * 7 and set(more[2][-7:]) == {"mmhgr_none"}
+
+
+def test_a_timed_transition_moves_from_one_held_gesture_to_another_over_time(tmp_path):
+    write_dataset(tmp_path / "src", people=(1,), poses=("fist_moved", "five"), per_pose=1)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    now, before = crossval.timed_transitions(frames, 1, np.random.default_rng(0))
+    x = mmhgr.features57(frames)
+    first, second = (x[frames.pose == p][0] for p in ("fist_moved", "five"))
+    if np.abs(now[0] - first).max() > np.abs(now[0] - second).max():  # drawn the other way
+        first, second = second, first
+    count = len(now)  # strictly between the ends, at the rate
+    assert crossval.TRANSITION_S[0] * crossval.TIMED_RATE_HZ - 1 <= count <= \
+        crossval.TRANSITION_S[1] * crossval.TIMED_RATE_HZ
+    ahead = int(motion.WINDOW_S * crossval.TIMED_RATE_HZ)
+    assert np.allclose(before[:ahead - 1], first)  # 0.1 s back the hand was still held
+    assert np.allclose(before[ahead:], now[:-ahead], atol=1e-6)  # the same path, 0.1 s later
+    distance = np.abs(now - first).max(1)
+    assert (np.diff(distance) >= -1e-9).all() and 0 < distance[0] < distance[-1]
+    assert np.abs(now[-1] - second).max() > 0  # the held second pose is not a transition

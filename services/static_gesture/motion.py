@@ -1,0 +1,82 @@
+"""Fingers that move: a hand changing pose is answered ``none`` while its fingers move.
+
+Why: a static gesture is a held pose. A hand on its way from one gesture to another passes
+through shapes that a frame-by-frame classifier reads as gestures with confidence (a
+half-raised ring finger is a two or a three), and issue 15 wants transitions answered
+``none``. What tells them apart is time: the fingers of a held pose stay put, those of a
+changing one move. So the service follows each hand by its side and tracking id and compares
+its fingers with the hand's latest frame at least `WINDOW_S` older (`invariant.finger_change`:
+degrees, the root mean square change of the 19 joint angles, the same however the hand is
+turned). Below ``still_deg`` the answer is kept; from there to ``moving_deg`` the gestures fade
+into ``none`` in proportion (`openset.fade_into_none`, the open-set rule's fading); beyond, the
+hand is ``none``.
+
+The lines are chosen on the HGR set's held poses (development data) and hands made moving
+between two of a person's gestures (`crossval.timed_transitions`); the README's "Fingers that
+move" gives both figures. A hand seen for less than `WINDOW_S` has nothing to compare with and
+keeps its answer; a hand not seen for `FORGET_S` is forgotten; frame times that go backwards
+(a replay restarted) start the hand afresh.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from cbgo.services.static_gesture import invariant
+
+WINDOW_S = 0.1
+"""How far back a hand's fingers are compared, seconds of frame time."""
+FORGET_S = 1.0
+"""A hand not seen for this long (frame time) is forgotten."""
+STILL_DEG = 10.0
+MOVING_DEG = 20.0
+
+
+def keep_share(moved: np.ndarray, still_deg: float, moving_deg: float) -> np.ndarray:
+    """Returns the share of its gestures' probability each hand keeps for its finger motion.
+
+    1 up to ``still_deg``, falling in proportion to 0 at ``moving_deg``; 1 where the motion is
+    unknown (NaN). ``moving_deg`` 0 turns the rule off.
+    """
+    moved = np.nan_to_num(np.asarray(moved, dtype=np.float64), nan=0.0)
+    if moving_deg <= 0:
+        return np.ones(len(moved))
+    return np.clip((moving_deg - moved) / (moving_deg - still_deg), 0.0, 1.0)
+
+
+class FingerMotion:
+    """Follows hands over frames and measures how far each one's fingers just moved."""
+
+    def __init__(self, window_s: float = WINDOW_S, forget_s: float = FORGET_S):
+        self.window_s, self.forget_s = window_s, forget_s
+        self.tracks: dict[str, deque] = {}  # "side/id" -> (ts, bends) oldest first
+        self.now = -np.inf
+
+    def measure(self, hands: list[dict], ts: float, bends: np.ndarray) -> np.ndarray:
+        """Returns, per hand of one frame, degrees moved in the last `window_s` (NaN: unknown).
+
+        Args:
+            hands: the frame's contract hands (``side`` and ``id`` name each one's track).
+            ts: the frame's time, seconds.
+            bends: (N, 19) `invariant.bends` of the hands.
+        """
+        if ts < self.now:  # a replay restarted, or another source: history means nothing
+            self.tracks.clear()
+        self.now = ts
+        moved = np.full(len(hands), np.nan)
+        for k, hand in enumerate(hands):
+            track = self.tracks.setdefault(f"{hand['side']}/{hand['id']}", deque())
+            while len(track) > 1 and track[1][0] <= ts - self.window_s:
+                track.popleft()  # keep only the newest frame old enough to compare with
+            if track and track[0][0] <= ts - self.window_s:
+                moved[k] = invariant.finger_change(track[0][1], bends[k])
+            track.append((ts, bends[k]))
+        self._forget(ts)
+        return moved
+
+    def _forget(self, ts: float) -> None:
+        gone = [name for name, track in self.tracks.items() if track[-1][0] < ts - self.forget_s]
+        for name in gone:
+            del self.tracks[name]

@@ -1,0 +1,102 @@
+"""Fingers that move (`motion.py`): each hand followed by its id, its fingers compared with
+0.1 s before; through the service, a hand changing pose is answered none while it changes."""
+
+import numpy as np
+import pytest
+
+from cbgo import keys
+from cbgo.errors import ConfigError
+from cbgo.examples import example
+from cbgo.hands import features as F
+from cbgo.hands.model import HandPose, HandShape, build_hand
+from cbgo.hands.poses import gesture_mean
+from cbgo.services.static_gesture import invariant, motion
+from cbgo.services.static_gesture.main import StaticGesture, StaticGestureSettings
+from cbgo.testing import FakeBus
+
+SHAPE = HandShape.default(side="right")
+
+
+def hand(pose_vector, hand_id=1):
+    return build_hand(SHAPE, HandPose.from_vector(pose_vector), [0.0, 220.0, 0.0],
+                      hand_id=hand_id)
+
+
+def blend(a, b, share):
+    return gesture_mean(a).to_vector() + share * (gesture_mean(b).to_vector()
+                                                  - gesture_mean(a).to_vector())
+
+
+def bends_of(hands):
+    return invariant.bends(F.hands_features(hands, to_recorded_side=True))
+
+
+def test_the_share_kept_falls_from_the_still_line_to_the_moving_line():
+    moved = np.array([0.0, 10.0, 15.0, 20.0, 40.0, np.nan])
+    assert motion.keep_share(moved, 10.0, 20.0) == pytest.approx([1, 1, 0.5, 0, 0, 1])
+    assert motion.keep_share(moved, 10.0, 0.0) == pytest.approx(np.ones(6))  # off
+
+
+def test_each_hand_is_compared_with_its_own_frame_a_window_before():
+    tracker = motion.FingerMotion(window_s=0.1)
+    moved = []
+    for i in range(30):  # 10 ms apart: hand 1 holds five, hand 2 closes from five to a fist
+        hands = [hand(blend("five", "five", 0)), hand(blend("five", "grab", i / 29), 2)]
+        moved.append(tracker.measure(hands, 100.0 + i * 0.01, bends_of(hands)))
+    moved = np.array(moved)
+    assert np.isnan(moved[:10]).all() and not np.isnan(moved[10:]).any()  # nothing 0.1 s back
+    assert moved[10:, 0].max() < 1e-6 and moved[10:, 1].min() > 5.0
+    # the same change over 0.1 s, whatever the frame rate
+    assert moved[20, 1] == pytest.approx(invariant.finger_change(
+        bends_of([hand(blend("five", "grab", 10 / 29))]), bends_of([hand(blend("five", "grab",
+                                                                              20 / 29))]))[0])
+
+
+def test_a_hand_gone_for_long_or_time_going_back_starts_afresh():
+    tracker = motion.FingerMotion(window_s=0.1, forget_s=1.0)
+    five, grab = [hand(blend("five", "five", 0))], [hand(blend("grab", "grab", 0))]
+    tracker.measure(five, 10.0, bends_of(five))
+    assert tracker.measure(grab, 10.2, bends_of(grab))[0] > 20.0  # it closed
+    other = [hand(blend("five", "five", 0), hand_id=9)]
+    tracker.measure(other, 11.5, bends_of(other))  # hand 1 unseen for 1.3 s: forgotten
+    assert list(tracker.tracks) == ["right/9"]
+    assert np.isnan(tracker.measure(grab, 11.6, bends_of(grab))[0])
+    assert np.isnan(tracker.measure(five, 5.0, bends_of(five))[0])  # a replay restarted
+
+
+def service(**settings):
+    return FakeBus(StaticGesture(StaticGestureSettings(**settings)))
+
+
+def answers(bus, poses, rate_hz=60.0):
+    """Feeds one hand through `poses` (one per frame); returns (winner, p) per frame."""
+    out = []
+    for i, pose in enumerate(poses):
+        msg = example("hands/frame", hands=[hand(pose)], seq=i, ts=50.0 + i / rate_hz)
+        (_, m), = bus.feed(keys.HANDS_FRAME, msg)
+        k = int(np.argmax(m["probs"]))
+        out.append((m["names"][k], m["probs"][k]))
+    return out
+
+
+def test_through_the_service_a_hand_changing_pose_is_none_and_a_held_one_keeps_its_answer():
+    # a point held 0.5 s, a 0.3 s change into a fist, the fist held 0.5 s (60 Hz)
+    change = [blend("point", "grab", s * s * (3 - 2 * s)) for s in np.linspace(0, 1, 18)]
+    poses = [blend("point", "point", 0)] * 30 + change + [blend("grab", "grab", 0)] * 30
+    bus = service()
+    got = answers(bus, poses)
+    assert {name for name, _ in got[:30]} == {"point"}
+    assert {name for name, _ in got[-20:]} == {"grab"}  # 0.1 s after the change, held again
+    middle = slice(30 + 8, 30 + 15)  # the change's fast part
+    assert {name for name, _ in got[middle]} == {"none"}
+    assert bus.query("status", None)[1]["hands_moving"] >= 7
+    # read frame by frame (the rule off), the same frames are gestures
+    off = answers(service(moving_deg=0.0), poses)
+    assert {name for name, _ in off[middle]} == {"point", "grab"}
+    assert off[:30] == got[:30] and off[-20:] == got[-20:]  # held poses: the same answers
+
+
+@pytest.mark.parametrize(("still", "moving"), [(20.0, 10.0), (-1.0, 10.0), (10.0, 10.0)])
+def test_lines_out_of_order_are_a_configuration_error(still, moving):
+    with pytest.raises(ConfigError, match="still_deg"):
+        StaticGestureSettings(still_deg=still, moving_deg=moving)
