@@ -96,6 +96,16 @@ def test_through_the_service_a_hand_changing_pose_is_none_and_a_held_one_keeps_i
     assert off[:30] == got[:30] and off[-20:] == got[-20:]  # held poses: the same answers
 
 
+def test_a_change_of_one_finger_stays_under_the_line_and_is_read_frame_by_frame():
+    # two to three in 0.3 s: the ring finger alone moves, 3 of the 19 angles (README: what the
+    # rule cannot do)
+    change = [blend("two", "three", s * s * (3 - 2 * s)) for s in np.linspace(0, 1, 18)]
+    poses = [blend("two", "two", 0)] * 30 + change + [blend("three", "three", 0)] * 30
+    bus = service()
+    assert answers(bus, poses) == answers(service(moving_deg=0.0), poses)
+    assert bus.query("status", None)[1]["hands_moving"] == 0
+
+
 @pytest.mark.parametrize(("still", "moving"), [(20.0, 10.0), (-1.0, 10.0), (10.0, 10.0)])
 def test_lines_out_of_order_are_a_configuration_error(still, moving):
     with pytest.raises(ConfigError, match="still_deg"):
