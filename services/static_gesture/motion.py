@@ -30,6 +30,8 @@ WINDOW_S = 0.1
 """How far back a hand's fingers are compared, seconds of frame time."""
 FORGET_S = 1.0
 """A hand not seen for this long (frame time) is forgotten."""
+MAX_FRAMES_KEPT = 256
+"""Frames kept per hand at most: a source whose time stands still cannot grow the memory."""
 STILL_DEG = 10.0
 MOVING_DEG = 20.0
 
@@ -67,7 +69,8 @@ class FingerMotion:
         self.now = ts
         moved = np.full(len(hands), np.nan)
         for k, hand in enumerate(hands):
-            track = self.tracks.setdefault(f"{hand['side']}/{hand['id']}", deque())
+            track = self.tracks.setdefault(f"{hand['side']}/{hand['id']}",
+                                           deque(maxlen=MAX_FRAMES_KEPT))
             while len(track) > 1 and track[1][0] <= ts - self.window_s:
                 track.popleft()  # keep only the newest frame old enough to compare with
             if track and track[0][0] <= ts - self.window_s:

@@ -64,6 +64,14 @@ def test_a_hand_gone_for_long_or_time_going_back_starts_afresh():
     assert np.isnan(tracker.measure(five, 5.0, bends_of(five))[0])  # a replay restarted
 
 
+def test_a_source_whose_time_stands_still_keeps_a_bounded_history():
+    tracker = motion.FingerMotion()
+    five = [hand(blend("five", "five", 0))]
+    for _ in range(3 * motion.MAX_FRAMES_KEPT):
+        assert np.isnan(tracker.measure(five, 7.0, bends_of(five))[0])
+    assert len(tracker.tracks["right/1"]) == motion.MAX_FRAMES_KEPT
+
+
 def service(**settings):
     return FakeBus(StaticGesture(StaticGestureSettings(**settings)))
 
