@@ -9,7 +9,7 @@ Behaviour (the contract is services/static_gesture/README.md):
   class, when the model has it), ``model`` its id. There is no threshold: an uncertain hand
   gets its honest, flat vector. A frame with no hand gives no message;
 - a hand whose fingers are moving is a pose forming, not held: each hand is followed by its
-  side and id, and when its fingers moved more than ``--still-deg`` in the last 0.1 s its
+  side and id, and when its fingers moved more than ``--still-deg`` in the last 0.15 s its
   gestures fade into ``none``, wholly from ``--moving-deg`` (`motion`; 0 turns it off);
 - the model: ``--model PATH``, else the user's model (``data_dir()/models/static-gesture``, what
   ``cbgo train static`` and ``cbgo gestures record`` write) if it exists, else the one shipped
@@ -57,10 +57,10 @@ class StaticGestureSettings:
         "posterior samples averaged per prediction, all the ensemble's networks together"))
     watch_s: float = field(default=1.0, metadata=_help(WATCH_HELP))
     still_deg: float = field(default=motion.STILL_DEG, metadata=_help(
-        "a hand whose fingers moved less than this in the last 0.1 s keeps its answer "
+        "a hand whose fingers moved less than this in the last 0.15 s keeps its answer "
         "(degrees, RMS over its 19 joint angles); more fades its gestures into none"))
     moving_deg: float = field(default=motion.MOVING_DEG, metadata=_help(
-        "a hand whose fingers moved this much in the last 0.1 s is none: a pose forming, "
+        "a hand whose fingers moved this much in the last 0.15 s is none: a pose forming, "
         "not held (degrees; 0: off, every frame read alone)"))
 
     def __post_init__(self):

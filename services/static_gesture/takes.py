@@ -16,7 +16,8 @@ Rules:
   p < 0.5), as the episode service reads it.
 - Messages that break the ``hands/frame`` contract are counted and skipped, never scored.
 - How still the tracker holds the pose: per hand, how far its fingers moved in the last
-  `MOTION_WINDOW_S` (`invariant.finger_change`, by its tracking id), reported as percentiles:
+  `motion.WINDOW_S`, as the service compares (`invariant.finger_change`, by its tracking id),
+  reported as percentiles:
   a rule on finger motion (README: "Fingers that move") could only work with a tracker that
   holds a held pose still.
 
@@ -39,12 +40,10 @@ from cbgo import keys, wire
 from cbgo.errors import RecordingError, RejectedMessage
 from cbgo.hands import features as F
 from cbgo.recording import read_recording
-from cbgo.services.static_gesture import invariant
+from cbgo.services.static_gesture import invariant, motion
 from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW, StaticClassifier
 
 FRAMES_KEY = "**/" + keys.HANDS_FRAME.suffix
-MOTION_WINDOW_S = 0.1
-"""How far back a hand's fingers are compared (`finger_motion`), seconds of frame time."""
 
 
 @dataclass
@@ -102,7 +101,7 @@ def take_hands(path: Path) -> tuple[list[dict], list[float], int]:
 
 
 def finger_motion(hands: list[dict], stamps: list[float],
-                  window_s: float = MOTION_WINDOW_S) -> np.ndarray:
+                  window_s: float = motion.WINDOW_S) -> np.ndarray:
     """Returns, per hand, how far its fingers moved since ``window_s`` before (degrees).
 
     The hand is followed by its side and tracking id; it is compared with its latest frame at
@@ -198,7 +197,7 @@ def print_figures(fig: dict, model_id: str, title: str = "recorded takes") -> No
                   if take["median_top_p"] is not None else "")
         skipped = f"; {take['skipped']} skipped (broke the contract)" if take["skipped"] else ""
         moved = take.get("finger_motion")
-        moved = (f"; fingers moved in {MOTION_WINDOW_S:g} s: median {moved[50]:.1f}°, 95th "
+        moved = (f"; fingers moved in {motion.WINDOW_S:g} s: median {moved[50]:.1f}°, 95th "
                  f"percentile {moved[95]:.1f}°, 99th {moved[99]:.1f}°" if moved else "")
         print(f"  {take['label']:10} {take['path']}: {take['hands']} hands, {what} "
               f"{take['share']:.1%} (answers: {answers or 'none'}{median}){skipped}{moved}")

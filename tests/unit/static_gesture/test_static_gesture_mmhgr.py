@@ -395,8 +395,8 @@ def test_a_timed_transition_moves_from_one_held_gesture_to_another_over_time(tmp
     assert crossval.TRANSITION_S[0] * crossval.TIMED_RATE_HZ - 1 <= count <= \
         crossval.TRANSITION_S[1] * crossval.TIMED_RATE_HZ
     ahead = int(motion.WINDOW_S * crossval.TIMED_RATE_HZ)
-    assert np.allclose(before[:ahead - 1], first)  # 0.1 s back the hand was still held
-    assert np.allclose(before[ahead:], now[:-ahead], atol=1e-6)  # the same path, 0.1 s later
+    assert np.allclose(before[:ahead - 1], first)  # a window back the hand was still held
+    assert np.allclose(before[ahead:], now[:-ahead], atol=1e-6)  # the same path, a window later
     distance = np.abs(now - first).max(1)
     assert (np.diff(distance) >= -1e-9).all() and 0 < distance[0] < distance[-1]
     assert np.abs(now[-1] - second).max() > 0  # the held second pose is not a transition

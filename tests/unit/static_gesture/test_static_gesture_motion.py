@@ -1,5 +1,5 @@
 """Fingers that move (`motion.py`): each hand followed by its id, its fingers compared with
-0.1 s before; through the service, a hand changing pose is answered none while it changes."""
+a window before; through the service, a hand changing pose is answered none while it changes."""
 
 import numpy as np
 import pytest
@@ -94,7 +94,7 @@ def test_through_the_service_a_hand_changing_pose_is_none_and_a_held_one_keeps_i
     bus = service()
     got = answers(bus, poses)
     assert {name for name, _ in got[:30]} == {"point"}
-    assert {name for name, _ in got[-20:]} == {"grab"}  # 0.1 s after the change, held again
+    assert {name for name, _ in got[-20:]} == {"grab"}  # a window after the change, held again
     middle = slice(30 + 8, 30 + 15)  # the change's fast part
     assert {name for name, _ in got[middle]} == {"none"}
     assert bus.query("status", None)[1]["hands_moving"] >= 7

@@ -81,16 +81,16 @@ def test_a_malformed_take_is_named(spec):
 
 
 def test_the_bench_scores_takes_and_says_what_is_wrong(tmp_path, capsys):
-    five = record_take(tmp_path / "five.mcap", "five")
+    five = record_take(tmp_path / "five.mcap", "five", frames=20)
     parser = argparse.ArgumentParser()
     bench.add_arguments(parser)
     out = tmp_path / "fig.json"
     assert bench.run(parser.parse_args(["--takes", f"five={five}", "--json", str(out)])) == 0
     printed = capsys.readouterr().out
     assert "five" in printed and "known gestures, frames right" in printed
-    assert "fingers moved in 0.1 s" in printed  # 12 frames 10 ms apart: the last two measured
+    assert "fingers moved in 0.15 s" in printed  # 20 frames 10 ms apart: the last 5 measured
     fig = json.loads(out.read_text())
-    assert fig["takes"]["per_take"][0]["hands"] == 12 and fig["takes"]["known"] >= 0.9
+    assert fig["takes"]["per_take"][0]["hands"] == 20 and fig["takes"]["known"] >= 0.9
     assert set(fig["takes"]["per_take"][0]["finger_motion"]) == {"50", "95", "99"}
     assert bench.run(parser.parse_args(["--takes", f"five={tmp_path / 'no.mcap'}"])) == 2
     assert "no such file" in capsys.readouterr().out
@@ -115,7 +115,7 @@ def test_finger_motion_follows_each_hand_by_its_id_over_the_window():
         held["id"], closing["id"] = 1, 2
         hands += [held, closing]
         stamps += [i * 0.01] * 2
-    moved = takes.finger_motion(hands, stamps).reshape(30, 2)
+    moved = takes.finger_motion(hands, stamps, window_s=0.1).reshape(30, 2)
     assert np.isnan(moved[:10]).all() and not np.isnan(moved[10:]).any()  # the first 0.1 s
     assert moved[10:, 0].max() < 1e-6 and moved[10:, 1].min() > 5.0
     assert np.isnan(takes.finger_motion(hands[1::2], stamps[1::2], window_s=1.0)).all()
