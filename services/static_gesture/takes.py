@@ -9,17 +9,17 @@ Rules:
 
 - A take is an MCAP recording (`cbgo record`) of ``hands/frame`` messages made while one pose
   was held, named on the command line as ``LABEL=FILE``. Every hand of every frame is scored
-  through the model's own classifier (the same features and posterior the service computes).
+  as the service answers it: the model's own classifier (the same features and posterior),
+  then the service's finger-motion rule at its default lines (`motion`: a hand whose fingers
+  are moving fades into ``none``), frame after frame in recording order.
 - A take labelled with a gesture of the model is right where that gesture is the top answer
   with p ≥ 0.5; a take labelled ``none``, or with a name the model does not know (``ok``,
   ``horns``...), is an unknown pose: right where the frame is rejected (``none`` on top or top
   p < 0.5), as the episode service reads it.
 - Messages that break the ``hands/frame`` contract are counted and skipped, never scored.
 - How still the tracker holds the pose: per hand, how far its fingers moved in the last
-  `motion.WINDOW_S`, as the service compares (`invariant.finger_change`, by its tracking id),
-  reported as percentiles:
-  a rule on finger motion (README: "Fingers that move") could only work with a tracker that
-  holds a held pose still.
+  `motion.WINDOW_S`, as the service measures it, reported as percentiles. The finger-motion
+  rule (README: "Fingers that move") fades a held pose only where this crosses its line.
 
 Example::
 
@@ -42,6 +42,7 @@ from cbgo.hands import features as F
 from cbgo.recording import read_recording
 from cbgo.services.static_gesture import invariant, motion
 from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW, StaticClassifier
+from cbgo.services.static_gesture.openset import fade_into_none
 
 FRAMES_KEY = "**/" + keys.HANDS_FRAME.suffix
 
@@ -102,25 +103,17 @@ def take_hands(path: Path) -> tuple[list[dict], list[float], int]:
 
 def finger_motion(hands: list[dict], stamps: list[float],
                   window_s: float = motion.WINDOW_S) -> np.ndarray:
-    """Returns, per hand, how far its fingers moved since ``window_s`` before (degrees).
+    """Returns, per hand, how far its fingers moved in the last ``window_s`` (degrees).
 
-    The hand is followed by its side and tracking id; it is compared with its latest frame at
-    least ``window_s`` older (`invariant.finger_change`). NaN where there is none: the hand's
-    first ``window_s``.
+    Measured as the service measures it (`motion.FingerMotion`: each hand followed by its side
+    and id), hand by hand in recording order; NaN where there is nothing to compare with.
     """
-    moved = np.full(len(hands), np.nan)
     if not hands:
-        return moved
+        return np.zeros(0)
     bends = invariant.bends(F.hands_features(hands, to_recorded_side=True))
-    t = np.asarray(stamps, dtype=np.float64)
-    track = np.array([f"{h['side']}/{h['id']}" for h in hands])
-    for name in np.unique(track):
-        rows = np.flatnonzero(track == name)
-        rows = rows[np.argsort(t[rows], kind="stable")]
-        before = np.searchsorted(t[rows], t[rows] - window_s, side="right") - 1
-        has = before >= 0
-        moved[rows[has]] = invariant.finger_change(bends[rows[before[has]]], bends[rows[has]])
-    return moved
+    tracker = motion.FingerMotion(window_s)
+    return np.array([tracker.measure([hand], ts, bends[k:k + 1])[0]
+                     for k, (hand, ts) in enumerate(zip(hands, stamps, strict=True))])
 
 
 def score_take(classifier: StaticClassifier, label: str, path: Path) -> TakeScore:
@@ -134,9 +127,13 @@ def score_take(classifier: StaticClassifier, label: str, path: Path) -> TakeScor
     finite = np.isfinite(probs).all(1)
     score.skipped += int((~finite).sum())
     probs = probs[finite]
-    motion = finger_motion([h for h, ok in zip(hands, finite, strict=True) if ok],
-                           [t for t, ok in zip(stamps, finite, strict=True) if ok])
-    score.motion = motion[~np.isnan(motion)].tolist()
+    moved = finger_motion([h for h, ok in zip(hands, finite, strict=True) if ok],
+                          [t for t, ok in zip(stamps, finite, strict=True) if ok])
+    score.motion = moved[~np.isnan(moved)].tolist()
+    if NONE in classifier.names:  # as the service answers: moving fingers fade into none
+        probs = fade_into_none(probs, motion.keep_share(moved, motion.STILL_DEG,
+                                                        motion.MOVING_DEG),
+                               classifier.names.index(NONE))
     top = probs.argmax(1)
     names = np.array(classifier.names)[top]
     top_p = probs.max(1)

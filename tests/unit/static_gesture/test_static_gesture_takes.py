@@ -119,3 +119,21 @@ def test_finger_motion_follows_each_hand_by_its_id_over_the_window():
     assert np.isnan(moved[:10]).all() and not np.isnan(moved[10:]).any()  # the first 0.1 s
     assert moved[10:, 0].max() < 1e-6 and moved[10:, 1].min() > 5.0
     assert np.isnan(takes.finger_motion(hands[1::2], stamps[1::2], window_s=1.0)).all()
+
+
+def test_a_take_is_scored_as_the_service_answers_a_hand_whose_fingers_move(tmp_path, shipped):
+    # a point held 0.3 s, then closed into a fist over 0.3 s (60 Hz): read frame by frame the
+    # change is point then grab; as the service answers, its fast part is none
+    shape = HandShape.default(side="right")
+    point, grab = gesture_mean("point").to_vector(), gesture_mean("grab").to_vector()
+    shares = [0.0] * 18 + [s * s * (3 - 2 * s) for s in np.linspace(0, 1, 18)]
+    path = tmp_path / "change.mcap"
+    with Recorder(path) as rec:
+        for i, share in enumerate(shares):
+            hand = build_hand(shape, HandPose.from_vector(point + share * (grab - point)),
+                              np.array([0.0, 220.0, 0.0]), hand_id=3)
+            ns = T0 + int(i * 1e9 / 60)
+            rec.write("cbgo/hands/frame", wire.encode(keys.HANDS_FRAME.message(
+                ts=ns / 1e9, seq=i, source="simulated", device="sim", hands=[hand])), ns)
+    score, = takes.score_takes(shipped, [f"none={path}"])
+    assert score.answers["none"] >= 7 and score.answers["point"] >= 18
