@@ -167,9 +167,12 @@ def bends(x57: np.ndarray) -> np.ndarray:
     def between(a, b):
         return np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0))
 
-    bent = np.stack([between(axis[:, None], dirs[:, :, 1]), between(dirs[:, :, 1], dirs[:, :, 2]),
-                     between(dirs[:, :, 2], dirs[:, :, 3])], -1).reshape(len(x), 15)
-    spread = np.stack([between(dirs[:, f, 1], dirs[:, f + 1, 1]) for f in range(4)], -1)
+    # each finger's chain from the palm's axis: joint k bends bone k against the one before
+    # (one call for all 15 joints: the service computes this per frame, twice)
+    chain = np.concatenate([np.broadcast_to(axis[:, None, None], (len(x), 5, 1, 3)),
+                            dirs[:, :, 1:]], 2)
+    bent = between(chain[:, :, :-1], chain[:, :, 1:]).reshape(len(x), 15)
+    spread = between(dirs[:, :-1, 1], dirs[:, 1:, 1])
     return np.concatenate([bent, spread], 1)
 
 
