@@ -88,58 +88,53 @@ def person_folds(people: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
     return [np.sort(g) for g in np.array_split(rng.permutation(people), folds)]
 
 
-def transitions(frames: mmhgr.Frames, count: int, rng: np.random.Generator,
+def transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray,
                 alpha: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
-    """Returns hands part-way between two gestures of one person: (count, 57) and their pairs.
+    """Returns hands part-way between two gestures of one person: (N, 57) and their pairs.
 
     Why: a hand changing from one gesture to another passes through shapes that are neither,
     and issue 15 asks for those to be answered ``none``. The HGR set records no transitions,
-    so each is made from two real frames of one person showing different gestures: every
-    angle of the 57 (yaw differences wrapped) and every distance taken ``alpha`` of the way
-    from the first to the second, each joint turning at once, as a hand moving between poses
-    does to a first approximation.
+    so each is made from two real frames of one person showing different gestures
+    (`transition_ends`): every angle of the 57 (yaw differences wrapped) and every distance
+    taken ``alpha`` of the way from the first to the second, each joint turning at once, as a
+    hand moving between poses does to a first approximation.
 
     Args:
-        frames: the frames to draw from (people with fewer than two gestures are skipped).
-        count: how many hands.
-        rng: the random generator (which frames pair up).
+        frames: the frames the ends index.
+        firsts: the frames each hand goes from (`transition_ends`).
+        seconds: the frames each hand goes to.
         alpha: how far from the first frame towards the second.
 
     Returns:
         ``(x, pairs)``: features on the recorded side, and each hand's "first/second" gestures
-        in alphabetical order. Empty when no person shows two gestures.
+        in alphabetical order. Empty when there are no ends.
     """
-    firsts, seconds = transition_ends(frames, count, rng)
     if not len(firsts):
         return np.zeros((0, F.N_FEATURES)), np.zeros(0, dtype=str)
     labels = frames.labels()
-    x = mmhgr.features57(frames.subset(firsts))
-    step = mmhgr.features57(frames.subset(seconds)) - x
-    step[:, F.YAW_FEATURES] = invariant.wrap(step[:, F.YAW_FEATURES])
+    x, step = _start_and_step(frames, firsts, seconds)
     pairs = ["/".join(sorted(pair)) for pair in zip(labels[firsts], labels[seconds], strict=True)]
     return x + alpha * step, np.array(pairs)
 
 
-def timed_transitions(frames: mmhgr.Frames, count: int, rng: np.random.Generator
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Returns the hands of ``count`` transitions as a tracker reports them over time.
+def timed_transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray,
+                      rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Returns the hands of transitions as a tracker reports them over time.
 
     Why: the midway hands of `transitions` are single frames; the service also sees how fast
     a hand's fingers move (`motion`). Each transition goes from one of a person's gesture
     frames to one of another gesture (`transition_ends`), every joint following one
-    minimum-jerk profile over `TRANSITION_S`, sampled at `TIMED_RATE_HZ` strictly between the
-    two held poses (the held frames themselves are not transitions).
+    minimum-jerk profile over a duration drawn from `TRANSITION_S` (``rng``), sampled at
+    `TIMED_RATE_HZ` strictly between the two held poses (the held frames themselves are not
+    transitions).
 
     Returns:
         ``(now, before)``: (M, 57) features of every sampled hand, and of the same hand
         `motion.WINDOW_S` earlier (the held first pose before the change began).
     """
-    firsts, seconds = transition_ends(frames, count, rng)
     if not len(firsts):
         return np.zeros((0, F.N_FEATURES)), np.zeros((0, F.N_FEATURES))
-    x_from = mmhgr.features57(frames.subset(firsts))
-    step = mmhgr.features57(frames.subset(seconds)) - x_from
-    step[:, F.YAW_FEATURES] = invariant.wrap(step[:, F.YAW_FEATURES])
+    x_from, step = _start_and_step(frames, firsts, seconds)
     now, before = [], []
     for start, change, seconds_long in zip(x_from, step, rng.uniform(*TRANSITION_S, len(step)),
                                            strict=True):
@@ -149,9 +144,18 @@ def timed_transitions(frames: mmhgr.Frames, count: int, rng: np.random.Generator
     return np.concatenate(now), np.concatenate(before)
 
 
+def _start_and_step(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Returns the first frames' 57 features and the step to the seconds' (yaws wrapped)."""
+    x = mmhgr.features57(frames.subset(firsts))
+    step = mmhgr.features57(frames.subset(seconds)) - x
+    step[:, F.YAW_FEATURES] = invariant.wrap(step[:, F.YAW_FEATURES])
+    return x, step
+
+
 def transition_ends(frames: mmhgr.Frames, count: int, rng: np.random.Generator
                     ) -> tuple[np.ndarray, np.ndarray]:
-    """Returns the frames a transition goes from and to (`transitions`): two index arrays.
+    """Returns the frames transitions go from and to (`transitions`, `timed_transitions`).
 
     Each pair is one person's two frames of different gestures, the person drawn first (people
     with fewer than two gestures are skipped). Empty when no person shows two gestures.
@@ -233,15 +237,17 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
                       "turned": {name: np.array(clf.names)[clf.predict_features(
                           mmhgr.features57(sub, turn_rotations(len(sub), *turn))).argmax(1)]
                           for name, turn in TURNS.items()}})
-        count = TRANSITIONS_PER_PERSON * len(people)
-        x_mid, pairs = transitions(sub, count, np.random.default_rng([seed, k]))
+        ends = transition_ends(sub, TRANSITIONS_PER_PERSON * len(people),
+                               np.random.default_rng([seed, k]))
+        x_mid, pairs = transitions(sub, *ends)
         mid = clf.predict_features(x_mid) if len(x_mid) else np.zeros((0, len(clf.names)))
         parts[-1]["transitions"] = (pairs, _rejected(np.array(clf.names)[mid.argmax(1)],
                                                      mid.max(1)))
-        parts[-1]["motion"] = (finger_motion(sub), _whole_change(
-            x_test, *transition_ends(sub, count, np.random.default_rng([seed, k]))))
-        parts[-1]["timed"] = _timed_rejection(clf, *timed_transitions(
-            sub, TIMED_PER_PERSON * len(people), np.random.default_rng([seed, k, 1])))
+        parts[-1]["motion"] = (finger_motion(sub), _whole_change(x_test, *ends))
+        timed_rng = np.random.default_rng([seed, k, 1])
+        timed_ends = transition_ends(sub, TIMED_PER_PERSON * len(people), timed_rng)
+        parts[-1]["timed"] = _timed_rejection(clf, *timed_transitions(sub, *timed_ends,
+                                                                      timed_rng))
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
@@ -392,7 +398,8 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
         return None
     moved = np.concatenate([p["motion"][0] for p in parts])
     whole = np.concatenate([p["motion"][1] for p in parts])
-    probs = [p["probs"] for p in parts]
+    probs = np.concatenate([p["probs"] for p in parts])
+    names = np.array(parts[0]["names"])  # one vocabulary in every fold, as `summarise` reads
     rows = (label != "") & ~np.isnan(moved)
     if not rows.any():
         return None
@@ -405,10 +412,7 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     gates = []
     for lo, hi in FINGER_GATES:
         keep = motion.keep_share(moved, lo, hi)
-        faded = np.concatenate([fade_into_none(pr, k, p["names"].index(NONE)) for pr, k, p in zip(
-            probs, np.split(keep, np.cumsum([len(pr) for pr in probs])[:-1]), parts,
-            strict=True)])
-        names = np.array(parts[0]["names"])
+        faded = fade_into_none(probs, keep, list(names).index(NONE))
         still = ~_rejected(names[faded.argmax(1)], faded.max(1))
         gates.append({"lo": lo, "hi": hi, "lost": float((right & ~still)[rows].mean()),
                       "touched": float((keep < 1.0)[rows].mean())})

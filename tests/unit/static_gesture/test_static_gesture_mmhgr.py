@@ -268,8 +268,8 @@ def test_a_transition_lies_between_two_gestures_of_one_person(tmp_path):
     frames = mmhgr.load(tmp_path / "c.npz")
     x = mmhgr.features57(frames)
     labels = frames.labels()
-    ends = [crossval.transitions(frames, 30, np.random.default_rng(5), alpha)
-            for alpha in (0.0, 0.5, 1.0)]
+    drawn = crossval.transition_ends(frames, 30, np.random.default_rng(5))
+    ends = [crossval.transitions(frames, *drawn, alpha) for alpha in (0.0, 0.5, 1.0)]
     (first, pairs), (mid, _), (second, _) = ends
     yaws = np.array([n.endswith("_dyaw") for n in F.FEATURE_NAMES])
 
@@ -287,8 +287,9 @@ def test_a_transition_lies_between_two_gestures_of_one_person(tmp_path):
         step = second[k] - first[k]
         step[yaws] = invariant.wrap(step[yaws])
         assert np.abs(mid[k] - (first[k] + step / 2)).max() < 1e-6
-    assert len(crossval.transitions(frames.subset(labels == "five"), 5,
-                                    np.random.default_rng(0))[0]) == 0  # one gesture: no pair
+    fives = frames.subset(labels == "five")
+    assert len(crossval.transitions(fives, *crossval.transition_ends(
+        fives, 5, np.random.default_rng(0)))[0]) == 0  # one gesture: no pair
 
 
 @pytest.mark.parametrize(("pose", "flags", "agrees"), [
@@ -386,7 +387,9 @@ def test_a_timed_transition_moves_from_one_held_gesture_to_another_over_time(tmp
     write_dataset(tmp_path / "src", people=(1,), poses=("fist_moved", "five"), per_pose=1)
     mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
-    now, before = crossval.timed_transitions(frames, 1, np.random.default_rng(0))
+    rng = np.random.default_rng(0)
+    now, before = crossval.timed_transitions(frames, *crossval.transition_ends(frames, 1, rng),
+                                             rng)
     x = mmhgr.features57(frames)
     first, second = (x[frames.pose == p][0] for p in ("fist_moved", "five"))
     if np.abs(now[0] - first).max() > np.abs(now[0] - second).max():  # drawn the other way
