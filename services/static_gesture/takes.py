@@ -101,16 +101,15 @@ def take_hands(path: Path) -> tuple[list[dict], list[float], int]:
     return hands, stamps, skipped
 
 
-def finger_motion(hands: list[dict], stamps: list[float],
+def finger_motion(hands: list[dict], stamps: list[float], x57: np.ndarray,
                   window_s: float = motion.WINDOW_S) -> np.ndarray:
     """Returns, per hand, how far its fingers moved in the last ``window_s`` (degrees).
 
     Measured as the service measures it (`motion.FingerMotion`: each hand followed by its side
-    and id), hand by hand in recording order; NaN where there is nothing to compare with.
+    and id), hand by hand in recording order, from the hands' 57 features (``x57``, as the
+    model reads them); NaN where there is nothing to compare with.
     """
-    if not hands:
-        return np.zeros(0)
-    bends = invariant.bends(F.hands_features(hands, to_recorded_side=True))
+    bends = invariant.bends(x57) if len(hands) else np.zeros((0, len(invariant.BEND_NAMES)))
     tracker = motion.FingerMotion(window_s)
     return np.array([tracker.measure([hand], ts, bends[k:k + 1])[0]
                      for k, (hand, ts) in enumerate(zip(hands, stamps, strict=True))])
@@ -123,12 +122,13 @@ def score_take(classifier: StaticClassifier, label: str, path: Path) -> TakeScor
     score = TakeScore(label, str(path), unknown, skipped=skipped)
     if not hands:
         return score
-    probs = classifier.classify_hands(hands)
+    x = F.hands_features(hands, to_recorded_side=True)  # once, for the model and the motion
+    probs = classifier.predict_features(x)
     finite = np.isfinite(probs).all(1)
     score.skipped += int((~finite).sum())
     probs = probs[finite]
     moved = finger_motion([h for h, ok in zip(hands, finite, strict=True) if ok],
-                          [t for t, ok in zip(stamps, finite, strict=True) if ok])
+                          [t for t, ok in zip(stamps, finite, strict=True) if ok], x[finite])
     score.motion = moved[~np.isnan(moved)].tolist()
     if NONE in classifier.names:  # as the service answers: moving fingers fade into none
         probs = fade_into_none(probs, motion.keep_share(moved, motion.STILL_DEG,

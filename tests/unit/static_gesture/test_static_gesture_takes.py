@@ -9,6 +9,7 @@ import pytest
 
 from cbgo import keys, wire
 from cbgo.errors import RecordingError
+from cbgo.hands import features as F
 from cbgo.hands.model import HandPose, HandShape, build_hand
 from cbgo.hands.poses import gesture_mean, gesture_pose
 from cbgo.recording import Recorder
@@ -115,10 +116,11 @@ def test_finger_motion_follows_each_hand_by_its_id_over_the_window():
         held["id"], closing["id"] = 1, 2
         hands += [held, closing]
         stamps += [i * 0.01] * 2
-    moved = takes.finger_motion(hands, stamps, window_s=0.1).reshape(30, 2)
+    x = F.hands_features(hands, to_recorded_side=True)
+    moved = takes.finger_motion(hands, stamps, x, window_s=0.1).reshape(30, 2)
     assert np.isnan(moved[:10]).all() and not np.isnan(moved[10:]).any()  # the first 0.1 s
     assert moved[10:, 0].max() < 1e-6 and moved[10:, 1].min() > 5.0
-    assert np.isnan(takes.finger_motion(hands[1::2], stamps[1::2], window_s=1.0)).all()
+    assert np.isnan(takes.finger_motion(hands[1::2], stamps[1::2], x[1::2], window_s=1.0)).all()
 
 
 def test_a_take_is_scored_as_the_service_answers_a_hand_whose_fingers_move(tmp_path, shipped):
