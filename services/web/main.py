@@ -110,11 +110,12 @@ class Web(Service):
             self.server.stop()
 
     def status_extra(self) -> dict:
-        """Adds the URL, the pages connected and what was sent, skipped and dropped."""
+        """Adds the URL, the pages connected and what was sent, skipped, dropped and reset."""
         hub = self.server.hub if self.server else None
         return {"url": self.server.url if self.server else None,
                 "pages": len(hub.pages) if hub else 0,
                 "views": {"sent": hub.sent if hub else 0, "dropped": hub.dropped if hub else 0,
+                          "pages_reset": hub.resets if hub else 0,
                           "passed": self.views.down.passed,
                           "downsampled": self.views.down.skipped},
                 "requests": dict(self.requests)}

@@ -9,9 +9,10 @@
 - ``GET /ws``: the live stream. A new page first gets what the `Hub` remembers (the newest
   scene, robot state, intent, plan, services, and the recent gesture history), then every view
   as it comes; a socket opened by another site's page (its ``Origin``) is refused. Each page
-  has its own bounded queue: a page that cannot keep up loses messages (counted) instead of
-  slowing the service or the other pages. Requests from the page (STOP, feedback) arrive on
-  the same socket and are answered on it.
+  has its own bounded queue: a page that cannot keep up is not allowed to slow the service or
+  the other pages, nor to lose an intent or a plan unseen. Its socket is closed instead
+  (counted), and the page reconnects to a fresh snapshot. Requests from the page (STOP,
+  feedback) arrive on the same socket and are answered on it.
 
 Threads: Zenoh's and the service's threads hand views over with `HttpServer.send`
 (thread-safe); everything else here runs on the server's loop.
@@ -33,7 +34,7 @@ from aiohttp import WSCloseCode, WSMsgType, web
 from cbgo.errors import ConfigError, RecordingError
 
 STATIC = Path(__file__).parent / "static"
-CLIENT_QUEUE = 512  # views queued per page before its newest are dropped
+CLIENT_QUEUE = 512  # views queued per page beyond its snapshot before it counts as behind
 # How many views of a topic a new page is sent first (the rest keep only the newest).
 HISTORY = {"episode/event": 200, "episode/summary": 20, "intent": 20, "plan/status": 20,
            "gestures/static": 600, "gestures/dynamic": 100, "@evidence": 300, "@reply": 0}
@@ -46,9 +47,10 @@ class Hub:
     """The pages connected to the live stream, and what a new page is sent first."""
 
     def __init__(self):
-        self.pages: set[asyncio.Queue] = set()
+        self.pages: dict[asyncio.Queue, Callable[[], None]] = {}
         self.sent = 0
         self.dropped = 0
+        self.resets = 0
         self._recent: dict[str, deque] = {}
 
     def publish(self, topic: str, text: str) -> None:
@@ -56,16 +58,46 @@ class Hub:
         keep = HISTORY.get(topic, 1)
         if keep:
             self._recent.setdefault(topic, deque(maxlen=keep)).append(text)
-        for queue in self.pages:
+        for queue in list(self.pages):
             self.offer(queue, text)
 
+    def join(self, on_behind: Callable[[], None]) -> asyncio.Queue:
+        """Opens a new page's queue, holding the whole snapshot first.
+
+        Args:
+            on_behind: called once if the page falls `CLIENT_QUEUE` views behind; it must
+                close the page's socket (the page is no longer sent anything).
+        """
+        snapshot = self.snapshot()
+        # Room for the whole snapshot: a page opened late in a session must get its intents
+        # and plans, which come after the long gesture histories.
+        queue: asyncio.Queue = asyncio.Queue(len(snapshot) + CLIENT_QUEUE)
+        for text in snapshot:
+            queue.put_nowait(text)
+        self.sent += len(snapshot)
+        self.pages[queue] = on_behind
+        return queue
+
+    def leave(self, queue: asyncio.Queue) -> None:
+        """Forgets a page whose socket closed."""
+        self.pages.pop(queue, None)
+
     def offer(self, queue: asyncio.Queue, text: str) -> None:
-        """Queues a view for one page, or counts it as dropped when the page lags."""
+        """Queues a view for one page; a page too far behind is dropped from the stream.
+
+        Dropping only the views that do not fit would lose whatever came then, an intent or a
+        plan included, and the page would show a stale world as live. So a page that lags is
+        reset: it reconnects and starts again from a snapshot of the newest state.
+        """
         try:
             queue.put_nowait(text)
             self.sent += 1
         except asyncio.QueueFull:
             self.dropped += 1
+            on_behind = self.pages.pop(queue, None)
+            if on_behind is not None:
+                self.resets += 1
+                on_behind()
 
     def snapshot(self) -> list[str]:
         """Returns what a new page gets first, oldest topic history first."""
@@ -224,10 +256,7 @@ class HttpServer:
             raise web.HTTPForbidden(text=f"cross-origin WebSocket from {origin} refused")
         ws = web.WebSocketResponse(heartbeat=20.0, max_msg_size=64 * 1024)
         await ws.prepare(request)
-        queue: asyncio.Queue = asyncio.Queue(CLIENT_QUEUE)
-        for text in self.hub.snapshot():
-            self.hub.offer(queue, text)
-        self.hub.pages.add(queue)
+        queue = self.hub.join(lambda: self._reset(ws))
         self._sockets.add(ws)
         writer = asyncio.ensure_future(self._write(ws, queue))
         try:
@@ -237,10 +266,16 @@ class HttpServer:
                 elif message.type == WSMsgType.ERROR:
                     log.info("a page's socket failed: %s", ws.exception())
         finally:
-            self.hub.pages.discard(queue)
+            self.hub.leave(queue)
             self._sockets.discard(ws)
             writer.cancel()
         return ws
+
+    def _reset(self, ws: web.WebSocketResponse) -> None:
+        log.warning("a page fell %d views behind the live stream: closed its socket, so it "
+                    "reconnects to the newest state", CLIENT_QUEUE)
+        asyncio.ensure_future(ws.close(code=WSCloseCode.TRY_AGAIN_LATER,
+                                       message=b"fell behind the live stream: reconnect"))
 
     def _answer(self, data: str | bytes) -> str:
         return self.on_request(data)

@@ -87,6 +87,18 @@ def shot(page, name: str) -> Path:
     return path
 
 
+def shown(page, stack, locator, timeout: float = 30000) -> None:
+    """Waits for a locator to be visible; if it never is, fails with what the page and the
+    web service saw (the link, the views sent and dropped, the page's errors)."""
+    try:
+        expect(locator).to_be_visible(timeout=timeout)
+    except AssertionError as e:
+        link = page.locator("#link").text_content()
+        views = stack.status("web")["views"]
+        raise AssertionError(f"{e}\nlink: {link}; web views: {views}; page errors: "
+                             f"{page.errors}") from None
+
+
 def distinct_colours(png: bytes) -> int:
     from PIL import Image
 
@@ -176,7 +188,9 @@ def test_a_low_confidence_intent_can_be_confirmed_or_rejected_from_the_page(page
     panel.locator("[data-testid=feedback-reject]").click()
     expect(panel).not_to_contain_text("did you mean")
     stack.put("intent", low_confidence("ep-web-confirm"))
-    panel.locator("[data-testid=feedback-confirm]").click()
+    confirm = panel.locator("[data-testid=feedback-confirm]")
+    shown(page, stack, confirm)
+    confirm.click()
     # The page's answer first: if the server refused, its reason is in the failure message.
     expect(panel.locator("#fb-result")).to_contain_text("sent to cbgo/intent/feedback")
     confirmed = feedback.first(lambda m: m["episode"] == "ep-web-confirm", timeout=10)

@@ -310,7 +310,12 @@ function stop() {
 function connect() {
   const url = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`;
   socket = new WebSocket(url);
-  socket.onopen = () => { $("link").textContent = "live"; $("link").className = "badge on"; };
+  socket.onopen = () => {
+    // Every connection starts with the server's snapshot (the histories included): start the
+    // store afresh, or a reconnect would show each remembered event twice.
+    store = emptyStore();
+    $("link").textContent = "live"; $("link").className = "badge on";
+  };
   socket.onmessage = (e) => { const m = JSON.parse(e.data); apply(m.topic, m.msg, m.t); };
   socket.onclose = () => {
     for (const [, onAnswer] of pending) onAnswer({ ok: false, error: "the connection closed" });
@@ -392,7 +397,11 @@ function focus() {
 
 let lastCharts = 0;
 function draw(now) {
+  // The next frame first: a panel that throws is reported (the console, the page's error
+  // event) without stopping every other panel's redraws.
+  requestAnimationFrame(draw);
   const d = store.dirty, any = (...topics) => d.has("all") || topics.some((t) => d.has(t));
+  store.dirty = new Set();
   trim();
   if (sceneView) {
     sceneView.setObjects(store.scene, store.intent?.object);
@@ -409,8 +418,6 @@ function draw(now) {
     drawGestures(); drawEpisodes(); lastCharts = now;
   }
   if (store.user) $("user").textContent = `user: ${store.user}`;
-  store.dirty.clear();
-  requestAnimationFrame(draw);
 }
 
 async function main() {
