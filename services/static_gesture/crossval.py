@@ -63,10 +63,13 @@ MAX_FRAME_GAP = 25
 (`finger_motion`; the set keeps one tracker frame in about 13, and stamps no time)."""
 MOTION_BINS = (0.0, 4.0, 8.0, 16.0, 32.0, np.inf)
 """Bins of a frame's finger motion (°, `finger_motion`) for the accuracy by motion."""
-FINGER_GATES = ((motion.STILL_DEG, motion.MOVING_DEG), (15.0, 30.0), (20.0, 40.0))
-"""Lines of the service's finger-motion rule (`motion`; the first pair is its default): a
-hand whose fingers moved more than the first figure (°) has its gestures faded into ``none``
-in proportion, wholly from the second. What each costs the held poses is printed."""
+FINGER_GATES = ((motion.STILL_DEG, motion.MOVING_DEG, motion.CHANGED_TV),
+                (10.0, 20.0, motion.CHANGED_TV), (10.0, 20.0, 0.0))
+"""Lines of the service's finger-motion rule (`motion`; the first is its default): a hand
+whose answer changed by at least the third figure (total variation; 0: any) and whose fingers
+moved more than the first (°) has its gestures faded into ``none`` in proportion, wholly from
+the second. The last is the rule on finger motion alone (stop 39's default). What each costs
+the held poses is printed."""
 TIMED_PER_PERSON = 40
 """Transitions played over time per held-out person (`timed_transitions`)."""
 TRANSITION_S = (0.25, 0.6)
@@ -175,7 +178,7 @@ def transition_ends(frames: mmhgr.Frames, count: int, rng: np.random.Generator
     return np.array(firsts), np.array(seconds)
 
 
-def finger_motion(frames: mmhgr.Frames) -> np.ndarray:
+def finger_motion(frames: mmhgr.Frames) -> tuple[np.ndarray, np.ndarray]:
     """Returns, per frame, how far its fingers moved since the take's previous kept frame.
 
     Why: a hand changing pose moves its fingers, a held one should not; whether the service
@@ -184,7 +187,8 @@ def finger_motion(frames: mmhgr.Frames) -> np.ndarray:
     person's take of the same pose, at most `MAX_FRAME_GAP` tracker frames earlier.
 
     Returns:
-        (N,) degrees; NaN where a frame has no previous frame.
+        ``(moved, previous)``: (N,) degrees, NaN where a frame has no previous frame; (N,)
+        the previous frame's row, -1 where none.
     """
     bends = invariant.bends(mmhgr.features57(frames))
     take = np.char.add(np.char.add(frames.user.astype(str), "/"),
@@ -195,7 +199,9 @@ def finger_motion(frames: mmhgr.Frames) -> np.ndarray:
     moved = np.full(len(frames), np.nan)
     moved[order[1:][follows]] = invariant.finger_change(bends[order][:-1][follows],
                                                         bends[order][1:][follows])
-    return moved
+    previous = np.full(len(frames), -1)
+    previous[order[1:][follows]] = order[:-1][follows]
+    return moved, previous
 
 
 def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int = 5,
@@ -243,7 +249,9 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
         mid = clf.predict_features(x_mid) if len(x_mid) else np.zeros((0, len(clf.names)))
         parts[-1]["transitions"] = (pairs, _rejected(np.array(clf.names)[mid.argmax(1)],
                                                      mid.max(1)))
-        parts[-1]["motion"] = (finger_motion(sub), _whole_change(x_test, *ends))
+        moved, previous = finger_motion(sub)
+        parts[-1]["motion"] = (moved, _whole_change(x_test, *ends),
+                               _answer_change(probs, previous))
         timed_rng = np.random.default_rng([seed, k, 1])
         timed_ends = transition_ends(sub, TIMED_PER_PERSON * len(people), timed_rng)
         parts[-1]["timed"] = _timed_rejection(clf, *timed_transitions(sub, *timed_ends,
@@ -267,19 +275,30 @@ def _whole_change(x57: np.ndarray, firsts: np.ndarray, seconds: np.ndarray) -> n
     return invariant.finger_change(bends[firsts], bends[seconds])
 
 
+def _answer_change(probs: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """Returns each frame's `motion.answer_change` since its previous frame (NaN: none)."""
+    changed = np.full(len(probs), np.nan)
+    has = previous >= 0
+    changed[has] = motion.answer_change(probs[previous[has]], probs[has])
+    return changed
+
+
 def _timed_rejection(clf, now: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, ...]:
     """Returns whether each timed transition hand is rejected, per rule.
 
     First by the model alone (each frame read alone), then with the service's finger-motion
     rule at each of `FINGER_GATES`.
     """
-    probs = clf.predict_features(now) if len(now) else np.zeros((0, len(clf.names)))
     names = np.array(clf.names)
-    moved = invariant.finger_change(invariant.bends(before), invariant.bends(now)) \
-        if len(now) else np.zeros(0)
+    if not len(now):
+        return tuple(np.zeros(0, dtype=bool) for _ in range(len(FINGER_GATES) + 1))
+    probs = clf.predict_features(now)
+    changed = motion.answer_change(clf.predict_features(before), probs)
+    moved = invariant.finger_change(invariant.bends(before), invariant.bends(now))
     out = [_rejected(names[probs.argmax(1)], probs.max(1))]
-    for lo, hi in FINGER_GATES:
-        faded = fade_into_none(probs, motion.keep_share(moved, lo, hi), clf.names.index(NONE))
+    for lo, hi, tv in FINGER_GATES:
+        keep = motion.keep_share(moved, lo, hi, changed, tv)
+        faded = fade_into_none(probs, keep, clf.names.index(NONE))
         out.append(_rejected(names[faded.argmax(1)], faded.max(1)))
     return tuple(out)
 
@@ -388,7 +407,7 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     Returns:
         ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi (None: no bound), share,
         accuracy}], transitions: {10, 50} percentiles of their whole change (°), timed: {n,
-        rejected_alone}, gates: [{lo, hi, lost, touched, timed_rejected}]}``: ``lost``, the
+        rejected_alone}, gates: [{lo, hi, tv, lost, touched, timed_rejected}]}``: ``lost``, the
         share of the known frames answered right frame by frame that a rule rejects (top
         probability below 0.5 or ``none`` after the fading); ``touched``, the share it fades
         at all; ``timed_rejected``, the timed transitions' hands (`timed_transitions`) it
@@ -398,6 +417,7 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
         return None
     moved = np.concatenate([p["motion"][0] for p in parts])
     whole = np.concatenate([p["motion"][1] for p in parts])
+    changed = np.concatenate([p["motion"][2] for p in parts])
     probs = np.concatenate([p["probs"] for p in parts])
     names = np.array(parts[0]["names"])  # one vocabulary in every fold, as `summarise` reads
     rows = (label != "") & ~np.isnan(moved)
@@ -410,11 +430,12 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
                           "share": float(sel.sum() / rows.sum()),
                           "accuracy": float(right[sel].mean()) if sel.any() else None})
     gates = []
-    for lo, hi in FINGER_GATES:
-        keep = motion.keep_share(moved, lo, hi)
+    for lo, hi, tv in FINGER_GATES:
+        keep = motion.keep_share(moved, lo, hi, changed, tv)
         faded = fade_into_none(probs, keep, list(names).index(NONE))
         still = ~_rejected(names[faded.argmax(1)], faded.max(1))
-        gates.append({"lo": lo, "hi": hi, "lost": float((right & ~still)[rows].mean()),
+        gates.append({"lo": lo, "hi": hi, "tv": tv,
+                      "lost": float((right & ~still)[rows].mean()),
                       "touched": float((keep < 1.0)[rows].mean())})
     timed = [np.concatenate(rule) for rule in zip(*(p["timed"] for p in parts), strict=True)] \
         if "timed" in parts[0] else []
@@ -582,9 +603,10 @@ def _print_finger_motion(fig: dict | None) -> None:
         print(f"  hands changing pose over {TRANSITION_S[0]:g}-{TRANSITION_S[1]:g} s, "
               f"{TIMED_RATE_HZ:g} Hz (n={timed['n']}): {timed['rejected_alone']:.1%} rejected "
               "frame by frame")
-    print("  the service's rule, gestures fading into none as the fingers move (first: its "
-          "default lines): " + "; ".join(
-              f"{g['lo']:g}°-{g['hi']:g}° rejects {g['lost']:.2%} of the known frames answered "
+    print("  the service's rule, gestures fading into none as the fingers move and the "
+          "answer changes (first: its default lines): " + "; ".join(
+              f"{g['lo']:g}°-{g['hi']:g}° when the answer changed by {g['tv']:g} or more "
+              f"rejects {g['lost']:.2%} of the known frames answered "
               f"right frame by frame (fades {g['touched']:.1%})"
               + (f", and {g['timed_rejected']:.1%} of the changing hands"
                  if "timed_rejected" in g else "") for g in fig["gates"]))

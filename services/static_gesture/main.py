@@ -62,6 +62,10 @@ class StaticGestureSettings:
     moving_deg: float = field(default=motion.MOVING_DEG, metadata=_help(
         "a hand whose fingers moved this much in the last 0.15 s is none: a pose forming, "
         "not held (degrees; 0: off, every frame read alone)"))
+    changed_tv: float = field(default=motion.CHANGED_TV, metadata=_help(
+        "only a hand whose answer changed this much in the last 0.15 s (total variation, "
+        "0-1) is faded for its finger motion: a held pose's flicker keeps its answer "
+        "(0: finger motion alone)"))
 
     def __post_init__(self):
         if not 1 <= self.samples <= 1024:
@@ -71,6 +75,9 @@ class StaticGestureSettings:
         if self.moving_deg != 0 and not 0 <= self.still_deg < self.moving_deg:
             raise ConfigError(f"still_deg={self.still_deg} and moving_deg={self.moving_deg}: "
                               "need 0 <= still_deg < moving_deg, or moving_deg 0 (off)")
+        if not 0 <= self.changed_tv <= 1:
+            raise ConfigError(f"changed_tv={self.changed_tv} must be within 0-1 (0: finger "
+                              "motion alone)")
 
 
 class StaticGesture(Service):
@@ -137,12 +144,12 @@ class StaticGesture(Service):
 
     def _fade_moving(self, hands: list[dict], ts: float, x57: np.ndarray, probs: np.ndarray
                      ) -> np.ndarray:
-        """Returns the probabilities with moving hands' gestures faded into ``none``."""
+        """Returns the probabilities with changing hands' gestures faded into ``none``."""
         s = self.settings
         if s.moving_deg <= 0 or NONE not in self.classifier.names:
             return probs
-        moved = self.motion.measure(hands, ts, invariant.bends(x57))
-        keep = motion.keep_share(moved, s.still_deg, s.moving_deg)
+        moved, changed = self.motion.measure(hands, ts, invariant.bends(x57), probs)
+        keep = motion.keep_share(moved, s.still_deg, s.moving_deg, changed, s.changed_tv)
         self.moving += int((keep < 1.0).sum())
         return fade_into_none(probs, keep, self.classifier.names.index(NONE))
 

@@ -101,18 +101,23 @@ def take_hands(path: Path) -> tuple[list[dict], list[float], int]:
     return hands, stamps, skipped
 
 
-def finger_motion(hands: list[dict], stamps: list[float], x57: np.ndarray,
-                  window_s: float = motion.WINDOW_S) -> np.ndarray:
-    """Returns, per hand, how far its fingers moved in the last ``window_s`` (degrees).
+def finger_motion(hands: list[dict], stamps: list[float], x57: np.ndarray, probs: np.ndarray,
+                  window_s: float = motion.WINDOW_S) -> tuple[np.ndarray, np.ndarray]:
+    """Returns, per hand, how far its fingers (degrees) and answer moved in ``window_s``.
 
     Measured as the service measures it (`motion.FingerMotion`: each hand followed by its side
     and id), hand by hand in recording order, from the hands' 57 features (``x57``, as the
-    model reads them); NaN where there is nothing to compare with.
+    model reads them) and the model's answers (``probs``); NaN where there is nothing to
+    compare with.
     """
-    bends = invariant.bends(x57) if len(hands) else np.zeros((0, len(invariant.BEND_NAMES)))
+    if not len(hands):
+        return np.zeros(0), np.zeros(0)
+    bends = invariant.bends(x57)
     tracker = motion.FingerMotion(window_s)
-    return np.array([tracker.measure([hand], ts, bends[k:k + 1])[0]
-                     for k, (hand, ts) in enumerate(zip(hands, stamps, strict=True))])
+    both = [tracker.measure([hand], ts, bends[k:k + 1], probs[k:k + 1])
+            for k, (hand, ts) in enumerate(zip(hands, stamps, strict=True))]
+    return (np.array([moved[0] for moved, _ in both]),
+            np.array([changed[0] for _, changed in both]))
 
 
 def score_take(classifier: StaticClassifier, label: str, path: Path) -> TakeScore:
@@ -127,13 +132,14 @@ def score_take(classifier: StaticClassifier, label: str, path: Path) -> TakeScor
     finite = np.isfinite(probs).all(1)
     score.skipped += int((~finite).sum())
     probs = probs[finite]
-    moved = finger_motion([h for h, ok in zip(hands, finite, strict=True) if ok],
-                          [t for t, ok in zip(stamps, finite, strict=True) if ok], x[finite])
+    moved, changed = finger_motion([h for h, ok in zip(hands, finite, strict=True) if ok],
+                                   [t for t, ok in zip(stamps, finite, strict=True) if ok],
+                                   x[finite], probs)
     score.motion = moved[~np.isnan(moved)].tolist()
-    if NONE in classifier.names:  # as the service answers: moving fingers fade into none
-        probs = fade_into_none(probs, motion.keep_share(moved, motion.STILL_DEG,
-                                                        motion.MOVING_DEG),
-                               classifier.names.index(NONE))
+    if NONE in classifier.names:  # as the service answers: changing hands fade into none
+        keep = motion.keep_share(moved, motion.STILL_DEG, motion.MOVING_DEG, changed,
+                                 motion.CHANGED_TV)
+        probs = fade_into_none(probs, keep, classifier.names.index(NONE))
     top = probs.argmax(1)
     names = np.array(classifier.names)[top]
     top_p = probs.max(1)

@@ -234,7 +234,8 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     motion = fig["finger_motion"]
     assert motion["n"] == 4 * 3 and sum(b["share"] for b in motion["by_motion"]) == \
         pytest.approx(1)
-    assert [(g["lo"], g["hi"]) for g in motion["gates"]] == list(crossval.FINGER_GATES)
+    assert [(g["lo"], g["hi"], g["tv"]) for g in motion["gates"]] == \
+        list(crossval.FINGER_GATES)
     assert all(0.0 <= g["lost"] <= g["touched"] <= 1.0 for g in motion["gates"])
     assert motion["transitions"][10] <= motion["transitions"][50]
     # hands changing pose over time: the rule can only add to what the model rejects
@@ -248,9 +249,12 @@ def test_finger_motion_is_the_bends_change_since_the_takes_previous_kept_frame(t
     write_dataset(tmp_path / "src", people=(1,), poses=("five", "up"), per_pose=3)
     mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
-    moved = crossval.finger_motion(frames)
+    moved, previous = crossval.finger_motion(frames)
     first = frames.frame == 0
     assert np.isnan(moved[first]).all() and not np.isnan(moved[~first]).any()
+    assert (previous[first] == -1).all()
+    assert (frames.pose[previous[~first]] == frames.pose[~first]).all()
+    assert (frames.frame[previous[~first]] == frames.frame[~first] - 1).all()
     bends = np.degrees(invariant.bends(mmhgr.features57(frames)))
     for i in np.flatnonzero(~first):  # against the same take's frame before
         j = np.flatnonzero((frames.pose == frames.pose[i]) & (frames.frame == frames.frame[i] - 1))
@@ -258,7 +262,7 @@ def test_finger_motion_is_the_bends_change_since_the_takes_previous_kept_frame(t
     # a frame too far after the one before is not its follower: a new stretch of the take
     far = frames.subset(np.argsort(frames.frame))
     far.frame[far.frame == 2] = 2 + crossval.MAX_FRAME_GAP + 1
-    assert np.isnan(crossval.finger_motion(far)[far.frame > 2]).all()
+    assert np.isnan(crossval.finger_motion(far)[0][far.frame > 2]).all()
 
 
 def test_a_transition_lies_between_two_gestures_of_one_person(tmp_path):

@@ -117,10 +117,19 @@ def test_finger_motion_follows_each_hand_by_its_id_over_the_window():
         hands += [held, closing]
         stamps += [i * 0.01] * 2
     x = F.hands_features(hands, to_recorded_side=True)
-    moved = takes.finger_motion(hands, stamps, x, window_s=0.1).reshape(30, 2)
+    probs = np.tile([0.9, 0.1], (60, 1))
+    share = np.arange(30) / 29
+    probs[1::2] = np.stack([1 - share, share], 1)  # the closing hand's answer turns with it
+    moved, changed = takes.finger_motion(hands, stamps, x, probs, window_s=0.1)
+    moved, changed = moved.reshape(30, 2), changed.reshape(30, 2)
     assert np.isnan(moved[:10]).all() and not np.isnan(moved[10:]).any()  # the first 0.1 s
     assert moved[10:, 0].max() < 1e-6 and moved[10:, 1].min() > 5.0
-    assert np.isnan(takes.finger_motion(hands[1::2], stamps[1::2], x[1::2], window_s=1.0)).all()
+    assert np.isnan(changed[:10]).all()
+    assert changed[10:, 0] == pytest.approx(0.0)
+    # against the newest frame at least 0.1 s back: 10 frames, or 11 where the sum rounds
+    assert ((changed[10:, 1] > 10 / 29 - 1e-9) & (changed[10:, 1] < 11 / 29 + 1e-9)).all()
+    alone = takes.finger_motion(hands[1::2], stamps[1::2], x[1::2], probs[1::2], window_s=1.0)
+    assert np.isnan(alone[0]).all() and np.isnan(alone[1]).all()
 
 
 def test_a_take_is_scored_as_the_service_answers_a_hand_whose_fingers_move(tmp_path, shipped):
