@@ -64,7 +64,7 @@ MAX_FRAME_GAP = 25
 MOTION_BINS = (0.0, 4.0, 8.0, 16.0, 32.0, np.inf)
 """Bins of a frame's finger motion (°, `finger_motion`) for the accuracy by motion."""
 FINGER_GATES = ((motion.STILL_DEG, motion.MOVING_DEG, motion.CHANGED_TV),
-                (10.0, 20.0, motion.CHANGED_TV), (10.0, 20.0, 0.0))
+                (5.0, 10.0, 0.2), (10.0, 20.0, 0.0))
 """Lines of the service's finger-motion rule (`motion`; the first is its default): a hand
 whose answer changed by at least the third figure (total variation; 0: any) and whose fingers
 moved more than the first (°) has its gestures faded into ``none`` in proportion, wholly from
