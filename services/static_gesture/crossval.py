@@ -407,7 +407,9 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     Returns:
         ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi (None: no bound), share,
         accuracy}], transitions: {10, 50} percentiles of their whole change (°), timed: {n,
-        rejected_alone}, gates: [{lo, hi, tv, lost, touched, timed_rejected}]}``: ``lost``, the
+        rejected_alone}, gates: [{lo, hi, tv, lost, worst, touched, timed_rejected}]}``:
+        ``worst``, the gesture whose frames answered right the rule rejects most, and that
+        share; ``lost``, the
         share of the known frames answered right frame by frame that a rule rejects (top
         probability below 0.5 or ``none`` after the fading); ``touched``, the share it fades
         at all; ``timed_rejected``, the timed transitions' hands (`timed_transitions`) it
@@ -434,8 +436,13 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
         keep = motion.keep_share(moved, lo, hi, changed, tv)
         faded = fade_into_none(probs, keep, list(names).index(NONE))
         still = ~_rejected(names[faded.argmax(1)], faded.max(1))
+        lost = right & ~still & rows
+        by_class = {str(g): float(lost[right & rows & (label == g)].sum()
+                                  / max(1, (right & rows & (label == g)).sum()))
+                    for g in np.unique(label[rows])}
         gates.append({"lo": lo, "hi": hi, "tv": tv,
                       "lost": float((right & ~still)[rows].mean()),
+                      "worst": max(by_class.items(), key=lambda item: item[1]),
                       "touched": float((keep < 1.0)[rows].mean())})
     timed = [np.concatenate(rule) for rule in zip(*(p["timed"] for p in parts), strict=True)] \
         if "timed" in parts[0] else []
@@ -607,6 +614,7 @@ def _print_finger_motion(fig: dict | None) -> None:
           "answer changes (first: its default lines): " + "; ".join(
               f"{g['lo']:g}°-{g['hi']:g}° when the answer changed by {g['tv']:g} or more "
               f"rejects {g['lost']:.2%} of the known frames answered "
-              f"right frame by frame (fades {g['touched']:.1%})"
+              f"right frame by frame (most of {g['worst'][0]}'s: {g['worst'][1]:.2%}; "
+              f"fades {g['touched']:.1%})"
               + (f", and {g['timed_rejected']:.1%} of the changing hands"
                  if "timed_rejected" in g else "") for g in fig["gates"]))

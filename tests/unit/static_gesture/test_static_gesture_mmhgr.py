@@ -237,6 +237,9 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert [(g["lo"], g["hi"], g["tv"]) for g in motion["gates"]] == \
         list(crossval.FINGER_GATES)
     assert all(0.0 <= g["lost"] <= g["touched"] <= 1.0 for g in motion["gates"])
+    # the gesture that loses most loses at least the mean share
+    assert all(g["worst"][0] in mmhgr.POSE_MAP.values() and
+               g["lost"] - 1e-9 <= g["worst"][1] <= 1.0 for g in motion["gates"])
     assert motion["transitions"][10] <= motion["transitions"][50]
     # hands changing pose over time: the rule can only add to what the model rejects
     assert motion["timed"]["n"] > 4 * crossval.TIMED_PER_PERSON
