@@ -10,16 +10,19 @@ Rules:
 - A take is an MCAP recording (`cbgo record`) of ``hands/frame`` messages made while one pose
   was held, named on the command line as ``LABEL=FILE``. Every hand of every frame is scored
   as the service answers it: the model's own classifier (the same features and posterior),
-  then the service's finger-motion rule at its default lines (`motion`: a hand whose fingers
-  are moving fades into ``none``), frame after frame in recording order.
+  then the service's rule on hands that change pose at its default lines (`motion`: a hand
+  whose fingers move while its answer changes fades into ``none``), frame after frame in
+  recording order.
 - A take labelled with a gesture of the model is right where that gesture is the top answer
   with p ≥ 0.5; a take labelled ``none``, or with a name the model does not know (``ok``,
   ``horns``...), is an unknown pose: right where the frame is rejected (``none`` on top or top
   p < 0.5), as the episode service reads it.
 - Messages that break the ``hands/frame`` contract are counted and skipped, never scored.
 - How still the tracker holds the pose: per hand, how far its fingers moved in the last
-  `motion.WINDOW_S`, as the service measures it, reported as percentiles. The finger-motion
-  rule (README: "Fingers that move") fades a held pose only where this crosses its line.
+  `motion.WINDOW_S`, as the service measures it, reported as percentiles. The rule on hands
+  that change pose (README: "Fingers that move") fades a held pose only where this crosses its
+  line while the answer changes; how many hands it rejected, and the take read frame by frame
+  without it, are printed beside.
 
 Example::
 
@@ -60,6 +63,8 @@ class TakeScore:
     skipped: int = 0  # messages that break the contract
     top_p: list[float] = field(default_factory=list)
     motion: list[float] = field(default_factory=list)  # `finger_motion`, where measured
+    right_alone: int = 0  # right when every frame is read alone, without the motion rule
+    rule_rejected: int = 0  # hands the motion rule rejected that read as a gesture alone
 
     @property
     def share(self) -> float:
@@ -136,19 +141,29 @@ def score_take(classifier: StaticClassifier, label: str, path: Path) -> TakeScor
                                    [t for t, ok in zip(stamps, finite, strict=True) if ok],
                                    x[finite], probs)
     score.motion = moved[~np.isnan(moved)].tolist()
+    alone = _answers(classifier, probs)
     if NONE in classifier.names:  # as the service answers: changing hands fade into none
         keep = motion.keep_share(moved, motion.STILL_DEG, motion.MOVING_DEG, changed,
                                  motion.CHANGED_TV)
         probs = fade_into_none(probs, keep, classifier.names.index(NONE))
-    top = probs.argmax(1)
-    names = np.array(classifier.names)[top]
-    top_p = probs.max(1)
-    answers = np.where((names == NONE) | (top_p < REJECT_BELOW), NONE, names)
+    answers = _answers(classifier, probs)
     score.hands = len(probs)
-    score.right = int((answers == NONE).sum() if unknown else (answers == label).sum())
+    score.right = _right(answers, label, unknown)
+    score.right_alone = _right(alone, label, unknown)
+    score.rule_rejected = int(((answers == NONE) & (alone != NONE)).sum())
     score.answers = Counter(answers.tolist())
-    score.top_p = top_p.tolist()
+    score.top_p = probs.max(1).tolist()
     return score
+
+
+def _answers(classifier: StaticClassifier, probs: np.ndarray) -> np.ndarray:
+    """Each hand's answer as the episode service reads it: ``none`` when rejected."""
+    names = np.array(classifier.names)[probs.argmax(1)]
+    return np.where((names == NONE) | (probs.max(1) < REJECT_BELOW), NONE, names)
+
+
+def _right(answers: np.ndarray, label: str, unknown: bool) -> int:
+    return int((answers == NONE).sum() if unknown else (answers == label).sum())
 
 
 def score_takes(classifier: StaticClassifier, specs: list[str]) -> list[TakeScore]:
@@ -180,6 +195,7 @@ def figures(scores: list[TakeScore]) -> dict:
     """Returns scored takes as plain data (JSON-safe): each take, then the pooled `summary`."""
     return {"per_take": [{"label": s.label, "path": s.path, "unknown": s.unknown,
                           "hands": s.hands, "right": s.right, "share": s.share,
+                          "right_alone": s.right_alone, "rule_rejected": s.rule_rejected,
                           "skipped": s.skipped, "answers": dict(s.answers.most_common()),
                           "median_top_p": float(np.median(s.top_p)) if s.top_p else None,
                           "finger_motion": {q: float(np.percentile(s.motion, q))
@@ -202,8 +218,12 @@ def print_figures(fig: dict, model_id: str, title: str = "recorded takes") -> No
         moved = take.get("finger_motion")
         moved = (f"; fingers moved in {motion.WINDOW_S:g} s: median {moved[50]:.1f}°, 95th "
                  f"percentile {moved[95]:.1f}°, 99th {moved[99]:.1f}°" if moved else "")
+        rule = (f"; the rule on hands that change pose rejected {take['rule_rejected']} "
+                f"that read as a gesture alone (read alone: {what} "
+                f"{take['right_alone'] / take['hands']:.1%})" if take["rule_rejected"] else "")
         print(f"  {take['label']:10} {take['path']}: {take['hands']} hands, {what} "
-              f"{take['share']:.1%} (answers: {answers or 'none'}{median}){skipped}{moved}")
+              f"{take['share']:.1%} (answers: {answers or 'none'}{median}){skipped}{moved}"
+              f"{rule}")
     for key, text in (("known", "known gestures, frames right"),
                       ("unknown_rejected", "unknown poses, frames rejected")):
         if fig[key] is not None:

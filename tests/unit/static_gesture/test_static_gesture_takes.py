@@ -132,7 +132,8 @@ def test_finger_motion_follows_each_hand_by_its_id_over_the_window():
     assert np.isnan(alone[0]).all() and np.isnan(alone[1]).all()
 
 
-def test_a_take_is_scored_as_the_service_answers_a_hand_whose_fingers_move(tmp_path, shipped):
+def test_a_take_is_scored_as_the_service_answers_a_hand_whose_fingers_move(tmp_path, shipped,
+                                                                           capsys):
     # a point held 0.3 s, then closed into a fist over 0.3 s (60 Hz): read frame by frame the
     # change is point then grab; as the service answers, its fast part is none
     shape = HandShape.default(side="right")
@@ -148,3 +149,10 @@ def test_a_take_is_scored_as_the_service_answers_a_hand_whose_fingers_move(tmp_p
                 ts=ns / 1e9, seq=i, source="simulated", device="sim", hands=[hand])), ns)
     score, = takes.score_takes(shipped, [f"none={path}"])
     assert score.answers["none"] >= 7 and score.answers["point"] >= 18
+    # read alone, the change's hands are gestures: the rule's rejections are what it adds
+    assert score.rule_rejected >= 5
+    assert score.right == score.right_alone + score.rule_rejected  # a none take: rejected = right
+    fig = takes.figures([score])
+    assert fig["per_take"][0]["rule_rejected"] == score.rule_rejected
+    takes.print_figures(fig, shipped.model_id)
+    assert f"rejected {score.rule_rejected} that read as a gesture alone" in capsys.readouterr().out
