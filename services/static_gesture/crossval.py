@@ -437,11 +437,11 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
         faded = fade_into_none(probs, keep, list(names).index(NONE))
         still = ~_rejected(names[faded.argmax(1)], faded.max(1))
         lost = right & ~still & rows
-        by_class = {str(g): float(lost[right & rows & (label == g)].sum()
-                                  / max(1, (right & rows & (label == g)).sum()))
-                    for g in np.unique(label[rows])}
-        gates.append({"lo": lo, "hi": hi, "tv": tv,
-                      "lost": float((right & ~still)[rows].mean()),
+        by_class = {}
+        for g in np.unique(label[rows]):
+            held_right = right & rows & (label == g)
+            by_class[str(g)] = float(lost[held_right].sum() / max(1, held_right.sum()))
+        gates.append({"lo": lo, "hi": hi, "tv": tv, "lost": float(lost[rows].mean()),
                       "worst": max(by_class.items(), key=lambda item: item[1]),
                       "touched": float((keep < 1.0)[rows].mean())})
     timed = [np.concatenate(rule) for rule in zip(*(p["timed"] for p in parts), strict=True)] \
