@@ -82,6 +82,7 @@ from cbgo.services.static_gesture import (
 from cbgo.services.static_gesture.classifier import (
     DEFAULT_SAMPLES,
     NONE,
+    REJECT_BELOW,
     StaticClassifier,
     default_model_path,
 )
@@ -176,7 +177,7 @@ def shifted(clf: StaticClassifier, x: np.ndarray, truth: list[str], seed: int = 
         for key, rule in (("accepted_right", True), ("network_accepted_right", False)):
             probs = clf.predict_features(xs, open_set=rule)
             right = np.array(clf.names)[probs.argmax(1)] == np.array(truth)
-            row[key] = float((right & (probs.max(1) >= 0.5)).mean())
+            row[key] = float((right & (probs.max(1) >= REJECT_BELOW)).mean())
         out.append(row)
     return out
 

@@ -73,6 +73,22 @@ MODEL_BASENAME = "static-gesture"
 DEFAULT_SAMPLES = 32
 
 
+def is_rejected(answer: np.ndarray, top: np.ndarray) -> np.ndarray:
+    """Whether each answer is no gesture: ``none``, or a top probability below `REJECT_BELOW`.
+
+    Args:
+        answer: each frame's most probable name.
+        top: its probability.
+    """
+    return (np.asarray(answer) == NONE) | (np.asarray(top) < REJECT_BELOW)
+
+
+def answers(names: list[str], probs: np.ndarray) -> np.ndarray:
+    """Returns each frame's answer as a consumer reads it: its top name, ``none`` if rejected."""
+    top = np.array(names)[probs.argmax(-1)]
+    return np.where(is_rejected(top, probs.max(-1)), NONE, top)
+
+
 MODEL_SUFFIXES = (".pt", ".json")  # one model: weights and metadata beside each other
 
 

@@ -40,7 +40,7 @@ from cbgo.hands import features as F
 from cbgo.hands.data import load_real_features
 from cbgo.hands.model import rotation
 from cbgo.services.static_gesture import invariant, mmhgr, motion, train
-from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW
+from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW, is_rejected
 from cbgo.services.static_gesture.openset import fade_into_none
 from cbgo.simuser.motion import min_jerk
 from cbgo.wire import STATIC_GESTURES
@@ -247,7 +247,7 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
                                np.random.default_rng([seed, k]))
         x_mid, pairs = transitions(sub, *ends)
         mid = clf.predict_features(x_mid) if len(x_mid) else np.zeros((0, len(clf.names)))
-        parts[-1]["transitions"] = (pairs, _rejected(np.array(clf.names)[mid.argmax(1)],
+        parts[-1]["transitions"] = (pairs, is_rejected(np.array(clf.names)[mid.argmax(1)],
                                                      mid.max(1)))
         moved, previous = finger_motion(sub)
         parts[-1]["motion"] = (moved, _whole_change(x_test, *ends),
@@ -295,11 +295,11 @@ def _timed_rejection(clf, now: np.ndarray, before: np.ndarray) -> tuple[np.ndarr
     probs = clf.predict_features(now)
     changed = motion.answer_change(clf.predict_features(before), probs)
     moved = invariant.finger_change(invariant.bends(before), invariant.bends(now))
-    out = [_rejected(names[probs.argmax(1)], probs.max(1))]
+    out = [is_rejected(names[probs.argmax(1)], probs.max(1))]
     for lo, hi, tv in FINGER_GATES:
         keep = motion.keep_share(moved, lo, hi, changed, tv)
         faded = fade_into_none(probs, keep, clf.names.index(NONE))
-        out.append(_rejected(names[faded.argmax(1)], faded.max(1)))
+        out.append(is_rejected(names[faded.argmax(1)], faded.max(1)))
     return tuple(out)
 
 
@@ -335,7 +335,7 @@ def summarise(parts: list[dict]) -> dict:
         sel = known & np.isin(user, members)
         per_style[style] = {"people": [int(u) for u in members], "n": int(sel.sum()),
                             "accuracy": float(correct[sel].mean()) if sel.any() else None}
-    rejected = _rejected(pred, top)
+    rejected = is_rejected(pred, top)
     rejection = {str(q): float(rejected[held & (pose == q)].mean())
                  for q in np.unique(pose[held])}
     seen = np.isin(pose, [q for half in POSE_HALVES for q in half]) & ~held
@@ -356,7 +356,7 @@ def summarise(parts: list[dict]) -> dict:
     network = None
     if "network" in parts[0]:  # the same frames without the model's open-set rule
         net_pred = np.concatenate([p["network"][0] for p in parts])
-        net_rejected = _rejected(net_pred, np.concatenate([p["network"][1] for p in parts]))
+        net_rejected = is_rejected(net_pred, np.concatenate([p["network"][1] for p in parts]))
         net_correct = net_pred == label
         network = {"rejection_overall": float(net_rejected[held].mean()),
                    "rejection_seen_overall": float(net_rejected[seen].mean())
@@ -372,7 +372,7 @@ def summarise(parts: list[dict]) -> dict:
         turned[name] = _balanced(turned_correct, label, known, classes)
     return {"classes": classes, "recall": recall,
             "transitions": _transition_figures(parts), "flat_hands": _flat_hands(pose, pred, top),
-            "finger_motion": _motion_figures(parts, label, correct & ~_rejected(pred, top)),
+            "finger_motion": _motion_figures(parts, label, correct & ~is_rejected(pred, top)),
             "balanced_accuracy": float(np.mean(recall)),
             "interval": _people_interval(label[known], pred[known], user[known]),
             # the rejection as a one-class recall: every truth NONE, a rejected frame's answer NONE
@@ -435,7 +435,7 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     for lo, hi, tv in FINGER_GATES:
         keep = motion.keep_share(moved, lo, hi, changed, tv)
         faded = fade_into_none(probs, keep, list(names).index(NONE))
-        still = ~_rejected(names[faded.argmax(1)], faded.max(1))
+        still = ~is_rejected(names[faded.argmax(1)], faded.max(1))
         lost = right & ~still & rows
         by_class = {}
         for g in np.unique(label[rows]):
@@ -465,7 +465,7 @@ def _flat_hands(pose: np.ndarray, pred: np.ndarray, top: np.ndarray) -> dict:
         ``{pose: {n, five, rejected, other, most_other}}``: ``most_other`` is the other gesture
         answered most and its share, None when there is none.
     """
-    rejected = _rejected(pred, top)
+    rejected = is_rejected(pred, top)
     out = {}
     for q in mmhgr.AMBIGUOUS:
         sel = pose == q
@@ -485,11 +485,6 @@ def _people_interval(label: np.ndarray, pred: np.ndarray, user: np.ndarray
                      ) -> list[float] | None:
     """Returns the 95 % bootstrap interval over people of the mean recall (None: no frame)."""
     return list(metrics.people_interval(label, pred, user)) if len(label) else None
-
-
-def _rejected(pred: np.ndarray, top: np.ndarray) -> np.ndarray:
-    """Whether each answer rejects its frame: ``none``, or a top probability below 0.5."""
-    return (pred == NONE) | (top < REJECT_BELOW)
 
 
 def _balanced(correct: np.ndarray, label: np.ndarray, rows: np.ndarray, classes: list[str]

@@ -44,7 +44,7 @@ from cbgo.errors import RecordingError, RejectedMessage
 from cbgo.hands import features as F
 from cbgo.recording import read_recording
 from cbgo.services.static_gesture import invariant, motion
-from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW, StaticClassifier
+from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW, StaticClassifier, answers
 from cbgo.services.static_gesture.openset import fade_into_none
 
 FRAMES_KEY = "**/" + keys.HANDS_FRAME.suffix
@@ -141,29 +141,23 @@ def score_take(classifier: StaticClassifier, label: str, path: Path) -> TakeScor
                                    [t for t, ok in zip(stamps, finite, strict=True) if ok],
                                    x[finite], probs)
     score.motion = moved[~np.isnan(moved)].tolist()
-    alone = _answers(classifier, probs)
+    alone = answers(classifier.names, probs)
     if NONE in classifier.names:  # as the service answers: changing hands fade into none
         keep = motion.keep_share(moved, motion.STILL_DEG, motion.MOVING_DEG, changed,
                                  motion.CHANGED_TV)
         probs = fade_into_none(probs, keep, classifier.names.index(NONE))
-    answers = _answers(classifier, probs)
+    answered = answers(classifier.names, probs)
     score.hands = len(probs)
-    score.right = _right(answers, label, unknown)
+    score.right = _right(answered, label, unknown)
     score.right_alone = _right(alone, label, unknown)
-    score.rule_rejected = int(((answers == NONE) & (alone != NONE)).sum())
-    score.answers = Counter(answers.tolist())
+    score.rule_rejected = int(((answered == NONE) & (alone != NONE)).sum())
+    score.answers = Counter(answered.tolist())
     score.top_p = probs.max(1).tolist()
     return score
 
 
-def _answers(classifier: StaticClassifier, probs: np.ndarray) -> np.ndarray:
-    """Each hand's answer as the episode service reads it: ``none`` when rejected."""
-    names = np.array(classifier.names)[probs.argmax(1)]
-    return np.where((names == NONE) | (probs.max(1) < REJECT_BELOW), NONE, names)
-
-
-def _right(answers: np.ndarray, label: str, unknown: bool) -> int:
-    return int((answers == NONE).sum() if unknown else (answers == label).sum())
+def _right(answered: np.ndarray, label: str, unknown: bool) -> int:
+    return int((answered == NONE).sum() if unknown else (answered == label).sum())
 
 
 def score_takes(classifier: StaticClassifier, specs: list[str]) -> list[TakeScore]:

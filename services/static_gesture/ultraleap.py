@@ -46,7 +46,7 @@ import yaml
 
 from cbgo.errors import ConfigError
 from cbgo.hands import features as F
-from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW
+from cbgo.services.static_gesture.classifier import NONE, is_rejected
 from cbgo.wire import BONE_TYPES, FINGER_TYPES
 
 POSES_DIR = Path(__file__).with_name("ultraleap_poses")
@@ -151,7 +151,7 @@ def turned_like(hand: dict, reference: dict) -> dict:
 def _right(truth: str, names: list[str], probs: np.ndarray) -> bool:
     top = int(np.argmax(probs))
     if truth == NONE:
-        return names[top] == NONE or float(probs[top]) < REJECT_BELOW
+        return bool(is_rejected(names[top], probs[top]))
     return names[top] == truth
 
 

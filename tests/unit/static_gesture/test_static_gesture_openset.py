@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cbgo.errors import ConfigError
-from cbgo.services.static_gesture import openset, train
+from cbgo.services.static_gesture import classifier, openset, train
 from cbgo.services.static_gesture.classifier import StaticClassifier
 
 
@@ -105,3 +105,14 @@ def test_ranking_only_the_frames_past_the_line_changes_no_answer(alpha):
     want[:, 3] = probs[:, 3] + (1.0 - every) * (1.0 - probs[:, 3])
     assert 0 < (every < 1).sum() < 500  # both kinds of frame are there
     assert rule.apply(probs, hidden, none_index=3) == pytest.approx(want, abs=1e-12)
+
+
+def test_a_frame_is_no_gesture_when_answered_none_or_when_its_top_probability_is_below_half():
+    names = ["grab", "none", "point"]
+    probs = np.array([[0.9, 0.05, 0.05],    # a sure grab
+                      [0.2, 0.7, 0.1],      # none
+                      [0.45, 0.1, 0.45],    # nothing sure: rejected
+                      [0.1, 0.4, 0.5]])     # point at exactly the line: kept
+    assert classifier.answers(names, probs).tolist() == ["grab", "none", "none", "point"]
+    assert classifier.is_rejected(np.array(["grab", "none", "point"]),
+                                  np.array([0.49, 0.99, 0.5])).tolist() == [True, True, False]
