@@ -40,7 +40,7 @@ from cbgo.hands import features as F
 from cbgo.hands.data import load_real_features
 from cbgo.hands.model import rotation
 from cbgo.services.static_gesture import invariant, mmhgr, motion, train
-from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW, is_rejected
+from cbgo.services.static_gesture.classifier import NONE, REJECT_BELOW, answers, is_rejected
 from cbgo.services.static_gesture.openset import fade_into_none
 from cbgo.simuser.motion import min_jerk
 from cbgo.wire import STATIC_GESTURES
@@ -132,19 +132,22 @@ def timed_transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndar
     transitions).
 
     Returns:
-        ``(now, before)``: (M, 57) features of every sampled hand, and of the same hand
-        `motion.WINDOW_S` earlier (the held first pose before the change began).
+        ``(now, before, which)``: (M, 57) features of every sampled hand, and of the same hand
+        `motion.WINDOW_S` earlier (the held first pose before the change began); (M,) the
+        index of each hand's transition in ``firsts`` and ``seconds``.
     """
     if not len(firsts):
-        return np.zeros((0, F.N_FEATURES)), np.zeros((0, F.N_FEATURES))
+        return (np.zeros((0, F.N_FEATURES)), np.zeros((0, F.N_FEATURES)),
+                np.zeros(0, dtype=int))
     x_from, step = _start_and_step(frames, firsts, seconds)
-    now, before = [], []
-    for start, change, seconds_long in zip(x_from, step, rng.uniform(*TRANSITION_S, len(step)),
-                                           strict=True):
+    now, before, which = [], [], []
+    for k, (start, change, seconds_long) in enumerate(zip(
+            x_from, step, rng.uniform(*TRANSITION_S, len(step)), strict=True)):
         t = np.arange(1, int(np.ceil(seconds_long * TIMED_RATE_HZ))) / TIMED_RATE_HZ
         now.append(start + min_jerk(t / seconds_long)[:, None] * change)
         before.append(start + min_jerk((t - motion.WINDOW_S) / seconds_long)[:, None] * change)
-    return np.concatenate(now), np.concatenate(before)
+        which.append(np.full(len(t), k))
+    return np.concatenate(now), np.concatenate(before), np.concatenate(which)
 
 
 def _start_and_step(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray
@@ -254,8 +257,9 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
                                _answer_change(probs, previous))
         timed_rng = np.random.default_rng([seed, k, 1])
         timed_ends = transition_ends(sub, TIMED_PER_PERSON * len(people), timed_rng)
-        parts[-1]["timed"] = _timed_rejection(clf, *timed_transitions(sub, *timed_ends,
-                                                                      timed_rng))
+        now, before, which = timed_transitions(sub, *timed_ends, timed_rng)
+        parts[-1]["timed"] = _timed_answers(clf, now, before)
+        parts[-1]["timed_ends"] = tuple(sub.labels()[ends][which] for ends in timed_ends)
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
@@ -283,24 +287,36 @@ def _answer_change(probs: np.ndarray, previous: np.ndarray) -> np.ndarray:
     return changed
 
 
-def _timed_rejection(clf, now: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Returns whether each timed transition hand is rejected, per rule.
+def _timed_answers(clf, now: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Returns each timed transition hand's answer (`classifier.answers`), per rule.
 
     First by the model alone (each frame read alone), then with the service's finger-motion
     rule at each of `FINGER_GATES`.
     """
-    names = np.array(clf.names)
     if not len(now):
-        return tuple(np.zeros(0, dtype=bool) for _ in range(len(FINGER_GATES) + 1))
+        return tuple(np.zeros(0, dtype=str) for _ in range(len(FINGER_GATES) + 1))
     probs = clf.predict_features(now)
     changed = motion.answer_change(clf.predict_features(before), probs)
     moved = invariant.finger_change(invariant.bends(before), invariant.bends(now))
-    out = [is_rejected(names[probs.argmax(1)], probs.max(1))]
+    out = [answers(clf.names, probs)]
     for lo, hi, tv in FINGER_GATES:
         keep = motion.keep_share(moved, lo, hi, changed, tv)
-        faded = fade_into_none(probs, keep, clf.names.index(NONE))
-        out.append(is_rejected(names[faded.argmax(1)], faded.max(1)))
+        out.append(answers(clf.names, fade_into_none(probs, keep, clf.names.index(NONE))))
     return tuple(out)
+
+
+def _timed_split(answered: np.ndarray, left: np.ndarray, reached: np.ndarray) -> dict:
+    """What a changing hand's answers are: rejected, the pose it leaves or reaches, or another.
+
+    Why: of a change's frames, the first still hold the pose the hand leaves and the last the
+    one it reaches, within a tracker's noise (the change follows a minimum-jerk profile); an
+    answer naming either is a gesture the person made. ``other``, a gesture the hand neither
+    leaves nor reaches, is evidence of a gesture nobody made.
+    """
+    rejected = answered == NONE
+    return {"rejected": float(rejected.mean()), "left": float((answered == left).mean()),
+            "reached": float((answered == reached).mean()),
+            "other": float((~rejected & (answered != left) & (answered != reached)).mean())}
 
 
 def summarise(parts: list[dict]) -> dict:
@@ -407,13 +423,15 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     Returns:
         ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi (None: no bound), share,
         accuracy}], transitions: {10, 50} percentiles of their whole change (°), timed: {n,
-        rejected_alone}, gates: [{lo, hi, tv, lost, worst, touched, timed_rejected}]}``:
+        rejected_alone, alone}, gates: [{lo, hi, tv, lost, worst, touched, timed_rejected,
+        timed}]}``:
         ``worst``, the gesture whose frames answered right the rule rejects most, and that
         share; ``lost``, the
         share of the known frames answered right frame by frame that a rule rejects (top
         probability below 0.5 or ``none`` after the fading); ``touched``, the share it fades
         at all; ``timed_rejected``, the timed transitions' hands (`timed_transitions`) it
-        rejects, against ``rejected_alone`` without it. None when the parts carry no motion.
+        rejects, against ``rejected_alone`` without it; ``timed`` and ``alone``, what those
+        hands are answered (`_timed_split`). None when the parts carry no motion.
     """
     if "motion" not in parts[0]:
         return None
@@ -447,11 +465,13 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     timed = [np.concatenate(rule) for rule in zip(*(p["timed"] for p in parts), strict=True)] \
         if "timed" in parts[0] else []
     if timed and len(timed[0]):
-        for gate, rejected in zip(gates, timed[1:], strict=True):
-            gate["timed_rejected"] = float(rejected.mean())
+        ends = [np.concatenate([p["timed_ends"][k] for p in parts]) for k in (0, 1)]
+        splits = [_timed_split(answered, *ends) for answered in timed]
+        for gate, split in zip(gates, splits[1:], strict=True):
+            gate["timed_rejected"], gate["timed"] = split["rejected"], split
     return {"n": int(rows.sum()),
-            "timed": {"n": int(len(timed[0])), "rejected_alone": float(timed[0].mean())}
-            if timed and len(timed[0]) else None,
+            "timed": {"n": int(len(timed[0])), "rejected_alone": splits[0]["rejected"],
+                      "alone": splits[0]} if timed and len(timed[0]) else None,
             "held": {q: float(np.percentile(moved[rows], q)) for q in (50, 95, 99)},
             "by_motion": by_motion, "gates": gates,
             "transitions": {q: float(np.percentile(whole, q)) for q in (10, 50)}
@@ -603,13 +623,19 @@ def _print_finger_motion(fig: dict | None) -> None:
     timed = fig.get("timed")
     if timed:
         print(f"  hands changing pose over {TRANSITION_S[0]:g}-{TRANSITION_S[1]:g} s, "
-              f"{TIMED_RATE_HZ:g} Hz (n={timed['n']}): {timed['rejected_alone']:.1%} rejected "
-              "frame by frame")
+              f"{TIMED_RATE_HZ:g} Hz (n={timed['n']}), frame by frame: "
+              + _timed_words(timed["alone"]))
     print("  the service's rule, gestures fading into none as the fingers move and the "
           "answer changes (first: its default lines): " + "; ".join(
               f"{g['lo']:g}°-{g['hi']:g}° when the answer changed by {g['tv']:g} or more "
               f"rejects {g['lost']:.2%} of the known frames answered "
               f"right frame by frame (most of {g['worst'][0]}'s: {g['worst'][1]:.2%}; "
               f"fades {g['touched']:.1%})"
-              + (f", and {g['timed_rejected']:.1%} of the changing hands"
-                 if "timed_rejected" in g else "") for g in fig["gates"]))
+              + (f"; of the changing hands: {_timed_words(g['timed'])}"
+                 if "timed" in g else "") for g in fig["gates"]))
+
+
+def _timed_words(split: dict) -> str:
+    return (f"{split['rejected']:.1%} rejected, read as the pose left {split['left']:.1%}, "
+            f"as the pose reached {split['reached']:.1%}, as another gesture "
+            f"{split['other']:.1%}")

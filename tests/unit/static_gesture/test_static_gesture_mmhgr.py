@@ -245,6 +245,9 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     assert motion["timed"]["n"] > 4 * crossval.TIMED_PER_PERSON
     assert all(motion["timed"]["rejected_alone"] <= g["timed_rejected"] <= 1.0
                for g in motion["gates"])
+    # each changing hand is answered one of four ways (its two ends are different gestures)
+    for split in [motion["timed"]["alone"]] + [g["timed"] for g in motion["gates"]]:
+        assert sum(split.values()) == pytest.approx(1)
     crossval.print_figures(fig)
 
 
@@ -395,8 +398,9 @@ def test_a_timed_transition_moves_from_one_held_gesture_to_another_over_time(tmp
     mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     rng = np.random.default_rng(0)
-    now, before = crossval.timed_transitions(frames, *crossval.transition_ends(frames, 1, rng),
-                                             rng)
+    now, before, which = crossval.timed_transitions(
+        frames, *crossval.transition_ends(frames, 1, rng), rng)
+    assert (which == 0).all()
     x = mmhgr.features57(frames)
     first, second = (x[frames.pose == p][0] for p in ("fist_moved", "five"))
     if np.abs(now[0] - first).max() > np.abs(now[0] - second).max():  # drawn the other way
