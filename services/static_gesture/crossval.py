@@ -260,6 +260,8 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
         now, before, which = timed_transitions(sub, *timed_ends, timed_rng)
         parts[-1]["timed"] = _timed_answers(clf, now, before)
         parts[-1]["timed_ends"] = tuple(sub.labels()[ends][which] for ends in timed_ends)
+        parts[-1]["timed_held"] = _held_other(answers(clf.names, probs), sub.labels(),
+                                              *timed_ends)
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
@@ -303,6 +305,19 @@ def _timed_answers(clf, now: np.ndarray, before: np.ndarray) -> tuple[np.ndarray
         keep = motion.keep_share(moved, lo, hi, changed, tv)
         out.append(answers(clf.names, fade_into_none(probs, keep, clf.names.index(NONE))))
     return tuple(out)
+
+
+def _held_other(answered: np.ndarray, labels: np.ndarray, firsts: np.ndarray,
+                seconds: np.ndarray) -> np.ndarray:
+    """Whether each transition's held ends, read as held, name a gesture of neither end.
+
+    Why: the baseline for `_timed_split`'s ``other``: how often the model misreads the
+    poses the hands change between while they are held.
+    """
+    both = np.concatenate([firsts, seconds])
+    ends = (np.concatenate([labels[firsts], labels[seconds]]),
+            np.concatenate([labels[seconds], labels[firsts]]))
+    return (answered[both] != NONE) & (answered[both] != ends[0]) & (answered[both] != ends[1])
 
 
 def _timed_split(answered: np.ndarray, left: np.ndarray, reached: np.ndarray) -> dict:
@@ -423,15 +438,17 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     Returns:
         ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi (None: no bound), share,
         accuracy}], transitions: {10, 50} percentiles of their whole change (°), timed: {n,
-        rejected_alone, alone}, gates: [{lo, hi, tv, lost, worst, touched, timed_rejected,
-        timed}]}``:
+        rejected_alone, alone, held_other}, gates: [{lo, hi, tv, lost, worst, touched,
+        timed_rejected, timed}]}``:
         ``worst``, the gesture whose frames answered right the rule rejects most, and that
         share; ``lost``, the
         share of the known frames answered right frame by frame that a rule rejects (top
         probability below 0.5 or ``none`` after the fading); ``touched``, the share it fades
         at all; ``timed_rejected``, the timed transitions' hands (`timed_transitions`) it
         rejects, against ``rejected_alone`` without it; ``timed`` and ``alone``, what those
-        hands are answered (`_timed_split`). None when the parts carry no motion.
+        hands are answered (`_timed_split`); ``held_other``, how often the poses they change
+        between, as held, read as a gesture of neither (`_held_other`). None when the parts
+        carry no motion.
     """
     if "motion" not in parts[0]:
         return None
@@ -471,7 +488,9 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
             gate["timed_rejected"], gate["timed"] = split["rejected"], split
     return {"n": int(rows.sum()),
             "timed": {"n": int(len(timed[0])), "rejected_alone": splits[0]["rejected"],
-                      "alone": splits[0]} if timed and len(timed[0]) else None,
+                      "alone": splits[0], "held_other": float(np.concatenate(
+                          [p["timed_held"] for p in parts]).mean())}
+            if timed and len(timed[0]) else None,
             "held": {q: float(np.percentile(moved[rows], q)) for q in (50, 95, 99)},
             "by_motion": by_motion, "gates": gates,
             "transitions": {q: float(np.percentile(whole, q)) for q in (10, 50)}
@@ -624,7 +643,8 @@ def _print_finger_motion(fig: dict | None) -> None:
     if timed:
         print(f"  hands changing pose over {TRANSITION_S[0]:g}-{TRANSITION_S[1]:g} s, "
               f"{TIMED_RATE_HZ:g} Hz (n={timed['n']}), frame by frame: "
-              + _timed_words(timed["alone"]))
+              + _timed_words(timed["alone"]) + f" (the poses they change between, as held, "
+              f"read as another gesture: {timed['held_other']:.1%})")
     print("  the service's rule, gestures fading into none as the fingers move and the "
           "answer changes (first: its default lines): " + "; ".join(
               f"{g['lo']:g}°-{g['hi']:g}° when the answer changed by {g['tv']:g} or more "
