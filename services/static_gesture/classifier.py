@@ -308,16 +308,18 @@ class StaticClassifier:
         except (TypeError, ValueError, KeyError, AttributeError) as e:
             raise ConfigError(f"{js}: malformed metadata ({type(e).__name__}: {e})") from None
 
-    def predict_features(self, features: np.ndarray, open_set: bool = True) -> np.ndarray:
+    def predict_features(self, features: np.ndarray, open_set: bool = True,
+                         bent: np.ndarray | None = None) -> np.ndarray:
         """Returns (N, C) probabilities for (N, 57) features (already on the recorded side).
 
         The members' answers averaged, each with its open-set rule applied unless ``open_set``
         is False (the networks' own answer, for benches that show what the rule adds).
+        ``bent``: the rows' `invariant.bends`, where the caller has computed them already.
         """
         x = np.atleast_2d(np.asarray(features, dtype=np.float64))
         if len(x) == 0:
             return np.zeros((0, len(self.names)))
-        inputs = self.network_inputs(x)
+        inputs = self.network_inputs(x, bent)
         probs = self.posterior.predict_members(inputs)
         if open_set and self.open_sets[0] is not None:
             none_index = self.names.index(NONE)
@@ -326,11 +328,15 @@ class StaticClassifier:
         probs = probs.mean(0)
         return probs / probs.sum(-1, keepdims=True)
 
-    def network_inputs(self, features: np.ndarray) -> np.ndarray:
-        """Returns what the network reads for (N, 57) features: derived, selected, standardised."""
+    def network_inputs(self, features: np.ndarray, bent: np.ndarray | None = None
+                       ) -> np.ndarray:
+        """Returns what the network reads for (N, 57) features: derived, selected, standardised.
+
+        ``bent``: the rows' `invariant.bends`, if computed already (`invariant.transform`).
+        """
         x = np.atleast_2d(np.asarray(features, dtype=np.float64))
         if self.transform in invariant.TRANSFORMS:
-            x = invariant.transform(x, self.transform)
+            x = invariant.transform(x, self.transform, bent)
         return (x[:, self.inputs] - self.mean) / self.std
 
     def classify_hands(self, hands: list[dict]) -> np.ndarray:

@@ -168,7 +168,7 @@ def bends(x57: np.ndarray) -> np.ndarray:
         return np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0))
 
     # each finger's chain from the palm's axis: joint k bends bone k against the one before
-    # (one call for all 15 joints: the service computes this per frame, twice)
+    # (one call for all 15 joints: the service computes this for every hand of every frame)
     chain = np.concatenate([np.broadcast_to(axis[:, None, None], (len(x), 5, 1, 3)),
                             dirs[:, :, 1:]], 2)
     bent = between(chain[:, :, :-1], chain[:, :, 1:]).reshape(len(x), 15)
@@ -192,12 +192,17 @@ def names_of(name: str) -> tuple[str, ...]:
     return NAMES_CONTINUOUS if name == TRANSFORM_CONTINUOUS else NAMES
 
 
-def transform(x57: np.ndarray, name: str) -> np.ndarray:
-    """Returns the derived features of a feature set named in `TRANSFORMS`."""
+def transform(x57: np.ndarray, name: str, bent: np.ndarray | None = None) -> np.ndarray:
+    """Returns the derived features of a feature set named in `TRANSFORMS`.
+
+    ``bent``: the rows' `bends` where the caller has them already (the service measures
+    finger motion with them), so that they are not computed twice.
+    """
     if name == TRANSFORM_CONTINUOUS:
         return continuous(derive_palm(x57))
     if name == TRANSFORM_BENDS:
-        return np.concatenate([continuous(derive_palm(x57))[:, _BEND_KEPT], bends(x57)], 1)
+        return np.concatenate([continuous(derive_palm(x57))[:, _BEND_KEPT],
+                               bends(x57) if bent is None else bent], 1)
     return derive_palm(x57) if name == TRANSFORM_PALM else derive(x57)
 
 

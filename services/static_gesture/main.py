@@ -126,7 +126,8 @@ class StaticGesture(Service):
         if not hands:
             return []
         x = F.hands_features(hands, to_recorded_side=True)
-        probs = self.classifier.predict_features(x)
+        bent = invariant.bends(x)  # once: the model reads them, and the motion rule
+        probs = self.classifier.predict_features(x, bent=bent)
         ok = np.isfinite(probs).all(1)
         if not ok.all():  # degenerate geometry; the wire check cannot see it
             self.ctx.counters.add("rejected", int((~ok).sum()))
@@ -134,7 +135,7 @@ class StaticGesture(Service):
                                      "not finite; hand skipped")
         if ok.any():
             probs[ok] = self._fade_moving([h for h, good in zip(hands, ok, strict=True) if good],
-                                          msg["ts"], x[ok], probs[ok])
+                                          msg["ts"], bent[ok], probs[ok])
         self.hands += len(hands)
         clf = self.classifier
         return [(keys.GESTURES_STATIC, keys.GESTURES_STATIC.message(ts=msg["ts"], seq=msg["seq"],
@@ -142,13 +143,13 @@ class StaticGesture(Service):
             probs=row.tolist(), model=clf.model_id))
             for hand, row, good in zip(hands, probs, ok, strict=True) if good]
 
-    def _fade_moving(self, hands: list[dict], ts: float, x57: np.ndarray, probs: np.ndarray
+    def _fade_moving(self, hands: list[dict], ts: float, bent: np.ndarray, probs: np.ndarray
                      ) -> np.ndarray:
         """Returns the probabilities with changing hands' gestures faded into ``none``."""
         s = self.settings
         if s.moving_deg <= 0 or NONE not in self.classifier.names:
             return probs
-        moved, changed = self.motion.measure(hands, ts, invariant.bends(x57), probs)
+        moved, changed = self.motion.measure(hands, ts, bent, probs)
         keep = motion.keep_share(moved, s.still_deg, s.moving_deg, changed, s.changed_tv)
         self.moving += int((keep < 1.0).sum())
         return fade_into_none(probs, keep, self.classifier.names.index(NONE))

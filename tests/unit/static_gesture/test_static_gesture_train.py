@@ -6,8 +6,12 @@ import numpy as np
 import pytest
 
 from cbgo.hands.data import load_real_features
-from cbgo.services.static_gesture import train
-from cbgo.services.static_gesture.classifier import Posterior, StaticClassifier
+from cbgo.services.static_gesture import invariant, train
+from cbgo.services.static_gesture.classifier import (
+    Posterior,
+    StaticClassifier,
+    default_model_path,
+)
 from cbgo.wire import STATIC_GESTURES
 
 
@@ -218,3 +222,13 @@ def test_flags_no_training_can_run_with_are_a_clear_error(flags):
     train.add_arguments(parser)
     with pytest.raises(ConfigError, match="must be at least 1"):
         train.options_from(parser.parse_args(flags))
+
+
+def test_joint_angles_the_caller_computed_already_give_the_same_answer():
+    clf = StaticClassifier.load(default_model_path())
+    assert clf.transform == invariant.TRANSFORM_BENDS  # the path the service takes
+    x = small_real(12)[0]
+    assert np.array_equal(clf.predict_features(x, bent=invariant.bends(x)),
+                          clf.predict_features(x))
+    other = invariant.bends(x[::-1])  # another hand's angles: the model reads what it is given
+    assert not np.allclose(clf.predict_features(x, bent=other), clf.predict_features(x))
