@@ -29,6 +29,9 @@ Rules:
   ``point``, ``thumbs_up`` and ``thumbs_extended`` → thumbsup, ``v`` → two, ``ok`` → pinch
   (the paper's pinch is an ok sign's shape: ``mmhgr.POSE_MAP``); ``horns`` is no gesture of
   ours (``none``: right when answered ``none`` or with top p < 0.5).
+- Thumbs down: each thumbs-up pose, turned like the training thumbs-ups, is also rolled 180°
+  about the hand's direction (`rolled_over`), which points its thumb down. A thumbs-down is no
+  gesture of ours (``none``), and a consumer that reads thumbs-up as "yes" must not get it.
 
 Example::
 
@@ -148,6 +151,20 @@ def turned_like(hand: dict, reference: dict) -> dict:
                                         for b in f["bones"]]} for f in hand["fingers"]]}
 
 
+def rolled_over(hand: dict) -> dict:
+    """Returns `hand` rolled 180° about its own direction (a thumbs-up becomes a thumbs-down)."""
+    return turned_like(hand, {"direction": hand["direction"],
+                              "palm_normal": [-v for v in hand["palm_normal"]]})
+
+
+def thumb_elevation_deg(hand: dict) -> float:
+    """Returns how far the thumb's distal bone points above level (+y, degrees; < 0: down)."""
+    thumb = next(f for f in hand["fingers"] if f["type"] == "thumb")
+    distal = thumb["bones"][-1]
+    d = np.asarray(distal["next_joint"], dtype=np.float64) - np.asarray(distal["prev_joint"])
+    return float(np.degrees(np.arcsin(d[1] / np.linalg.norm(d))))
+
+
 def _right(truth: str, names: list[str], probs: np.ndarray) -> bool:
     top = int(np.argmax(probs))
     if truth == NONE:
@@ -160,9 +177,11 @@ def score_poses(classifier, poses: dict[str, list[dict]] | None = None) -> dict:
 
     Returns:
         ``{"poses": [{pose, truth, answer, p, right, turned: {orientation: (answer, p)}}],
-        "right": k, "n": n, "right_turned": k, "n_turned": n}``; both sides of a pose are
-        mirror images, so each pose is scored on its right hand (the left gives the same
-        answer: a unit test holds them together).
+        "right": k, "n": n, "right_turned": k, "n_turned": n, "thumbs_down": [{pose,
+        answer, p, right, elevation_deg}]}``; both sides of a pose are mirror images, so each
+        pose is scored on its right hand (the left gives the same answer: a unit test holds
+        them together). ``thumbs_down``: the thumbs-up poses turned like the training
+        thumbs-ups and `rolled_over`, right when rejected.
     """
     from cbgo.hands.model import HandShape, build_hand  # noqa: PLC0415
     from cbgo.hands.poses import gesture_mean  # noqa: PLC0415
@@ -170,7 +189,7 @@ def score_poses(classifier, poses: dict[str, list[dict]] | None = None) -> dict:
     poses = load_poses() if poses is None else poses
     references = {g: build_hand(HandShape(side="right"), gesture_mean(g), FIELD_CENTRE_MM)
                   for g in TRAINING_ORIENTATIONS}
-    rows, right_turned, n_turned = [], 0, 0
+    rows, right_turned, n_turned, thumbs_down = [], 0, 0, []
     for name, (hand, _) in poses.items():
         truth = POSES.get(name, "none")
         turned = [turned_like(hand, ref) for ref in references.values()]
@@ -183,8 +202,14 @@ def score_poses(classifier, poses: dict[str, list[dict]] | None = None) -> dict:
         rows.append({"pose": name, "truth": truth, "answer": answers[0][0], "p": answers[0][1],
                      "right": oks[0], "turned": dict(zip(references, answers[1:], strict=True)),
                      "direction": hand["direction"], "palm_normal": hand["palm_normal"]})
+        if truth == "thumbsup":
+            down = rolled_over(turned[TRAINING_ORIENTATIONS.index("thumbsup")])
+            p = classifier.classify_hands([down])[0]
+            thumbs_down.append({"pose": name, "answer": names[int(np.argmax(p))],
+                                "p": float(np.max(p)), "right": _right(NONE, names, p),
+                                "elevation_deg": thumb_elevation_deg(down)})
     return {"poses": rows, "right": sum(r["right"] for r in rows), "n": len(rows),
-            "right_turned": right_turned, "n_turned": n_turned}
+            "right_turned": right_turned, "n_turned": n_turned, "thumbs_down": thumbs_down}
 
 
 def print_scores(fig: dict) -> None:
@@ -196,6 +221,13 @@ def print_scores(fig: dict) -> None:
         turned = "  ".join(f"{a}:{p:.2f}" for a, p in row["turned"].values())
         print(f"  {row['pose']:16s} ({row['truth']:8s}) as held {row['answer']}:{row['p']:.2f}"
               f"{'' if row['right'] else ' ✗'}; turned {turned}")
+    down = fig.get("thumbs_down", [])
+    if down:
+        print(f"  thumbs-ups turned like the training ones, then rolled over into thumbs-downs "
+              f"(no gesture; right when rejected): {sum(d['right'] for d in down)}/{len(down)}: "
+              + ", ".join(f"{d['pose']} (thumb {d['elevation_deg']:.0f}° from level) "
+                          f"{d['answer']}:{d['p']:.2f}{'' if d['right'] else ' ✗'}"
+                          for d in down))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from cbgo.hands import features as F
-from cbgo.hands.model import mirrored_hand
+from cbgo.hands.model import HandShape, build_hand, mirrored_hand
+from cbgo.hands.poses import gesture_mean
 from cbgo.services.static_gesture import ultraleap
 from cbgo.services.static_gesture.classifier import StaticClassifier, shipped_model_path
 from cbgo.wire import HANDS_FRAME, validate
@@ -70,6 +71,19 @@ def test_turning_a_hand_gives_it_the_reference_palm_frame_and_keeps_its_shape():
     assert turned["palm_position"] == hand["palm_position"]
 
 
+def test_rolling_a_thumbs_up_over_points_its_thumb_down_and_keeps_its_shape():
+    reference = build_hand(HandShape(side="right"), gesture_mean("thumbsup"),
+                           ultraleap.FIELD_CENTRE_MM)
+    up = ultraleap.turned_like(POSES["thumbs_up"][0], reference)
+    down = ultraleap.rolled_over(up)
+    assert ultraleap.thumb_elevation_deg(up) > 30 and ultraleap.thumb_elevation_deg(down) < -30
+    assert np.allclose(down["direction"], up["direction"], atol=1e-9)
+    assert np.allclose(down["palm_normal"], -np.asarray(up["palm_normal"]), atol=1e-9)
+    a, b = _joints(up).reshape(-1, 3), _joints(down).reshape(-1, 3)
+    assert np.allclose(np.linalg.norm(a[:, None] - a[None], axis=-1),
+                       np.linalg.norm(b[:, None] - b[None], axis=-1), atol=1e-6)
+
+
 def test_an_unknown_pose_is_right_when_answered_none_or_unsure():
     names = ["grab", "pinch", "none"]
     assert ultraleap._right("none", names, np.array([0.1, 0.2, 0.7]))
@@ -87,6 +101,12 @@ def test_the_bench_scores_every_pose_as_held_and_turned_with_the_shipped_model(c
         assert row["truth"] == ultraleap.POSES[row["pose"]]
         assert row["answer"] in clf.names and 0.0 <= row["p"] <= 1.0
         assert list(row["turned"]) == list(ultraleap.TRAINING_ORIENTATIONS)
+    # each thumbs-up is also scored rolled over into a thumbs-down, right when rejected
+    thumbs = [name for name, truth in ultraleap.POSES.items() if truth == "thumbsup"]
+    assert sorted(d["pose"] for d in fig["thumbs_down"]) == sorted(thumbs)
+    for row in fig["thumbs_down"]:
+        assert row["elevation_deg"] < 0 and row["answer"] in clf.names
+        assert row["right"] == (row["answer"] == "none" or row["p"] < 0.5)
     # a pose's left hand is answered as its right one
     for right, left in POSES.values():
         probs = clf.classify_hands([right, left])
