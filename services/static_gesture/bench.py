@@ -68,6 +68,7 @@ import numpy as np
 
 from cbgo import keys, wire
 from cbgo.errors import RecordingError
+from cbgo.hands.data import load_real_features
 from cbgo.hands.features import hands_features
 from cbgo.metrics import format_confusion
 from cbgo.services.static_gesture import (
@@ -88,6 +89,7 @@ from cbgo.services.static_gesture.classifier import (
 )
 
 EVAL_RELATIVE = Path("..") / "shared" / "eval" / "leap_static_features_test.npz"
+THUMB_PERCENTILES = (1, 5, 50, 95)
 GOALS = {"real_balanced_accuracy": 0.997, "real_ece": 0.03, "frames_per_s": 1000.0,
          "latency_p99_ms": 5.0, "unseen_people_accuracy": 0.97, "unknown_rejection": 0.90}
 
@@ -359,6 +361,9 @@ def _print(fig: dict) -> None:
     if fig.get("ultraleap"):
         ultraleap.print_scores(fig["ultraleap"])
         print()
+    if fig.get("thumb_levels"):
+        _print_thumb_levels(fig["thumb_levels"])
+        print()
     if fig.get("guinevere") is None:
         print(f"Guinevere's static takes: not in {guinevere.DEFAULT_DST} (python -m "
               "cbgo.services.static_gesture.guinevere convert SRC); skipped\n")
@@ -459,6 +464,35 @@ def recipe_of(clf: StaticClassifier) -> train.TrainOptions:
     return train.TrainOptions(**saved)
 
 
+def thumb_levels(frames: mmhgr.Frames | None) -> dict:
+    """How far recorded thumbs point above level (`invariant.thumb_elevation`), per group.
+
+    Why: what a rule telling a thumbs-down from a thumbs-up by the thumb's direction would
+    cost the recorded thumbs-ups (training data: the paper's recordings, and the HGR set's
+    ``up`` and ``down`` when its cache is present).
+    """
+    x, y, names = load_real_features()
+    groups = {"the paper's recorded thumbs-ups": x[y == names.index("thumbsup")]}
+    if frames is not None:
+        for pose, label in (("up", "the HGR set's thumbs-ups (up)"),
+                            ("down", "its thumbs-downs (down)")):
+            groups[label] = mmhgr.features57(frames.subset(frames.pose == pose))
+    out = {}
+    for label, rows in groups.items():
+        level = invariant.thumb_elevation(rows)
+        out[label] = {"n": len(rows), "below_-30": float((level < -30.0).mean()),
+                      "percentiles": {q: float(np.percentile(level, q)) for q in THUMB_PERCENTILES}}
+    return out
+
+
+def _print_thumb_levels(levels: dict) -> None:
+    print("thumb's distal bone above level, degrees (percentiles "
+          f"{', '.join(map(str, THUMB_PERCENTILES))}; share pointing more than 30° down): " +
+          "; ".join(f"{label} (n={g['n']}) " + " / ".join(
+              f"{v:.0f}" for v in g["percentiles"].values()) + f", {g['below_-30']:.1%}"
+              for label, g in levels.items()))
+
+
 def score_guinevere(clf: StaticClassifier) -> dict | None:
     """Scores Guinevere's cached takes (`guinevere`); None when the cache holds none."""
     specs = guinevere.cached_takes()
@@ -499,6 +533,7 @@ def run(args: argparse.Namespace) -> int:
     fig["simulated"] = simulated(clf, args.per_gesture, args.seed, hands, labels)
     fig["throughput"] = throughput(clf, hands[:args.frames], clf.path or model_path)
     frames = None if args.no_crossval else mmhgr.load(args.mmhgr)
+    fig["thumb_levels"] = thumb_levels(frames)
     if frames is not None:
         print(f"cross-validating by person ({args.folds} folds, one training each) ...")
         fig["crossval"] = crossval.crossvalidate(frames, recipe_of(clf), args.folds,

@@ -177,6 +177,22 @@ def bends(x57: np.ndarray) -> np.ndarray:
 
 
 
+def thumb_elevation(x57: np.ndarray) -> np.ndarray:
+    """Returns (N,) how far each hand's thumb distal bone points above level, degrees (< 0: down).
+
+    Why: a thumbs-down is a thumbs-up rolled over; every angle between bones is the same, so
+    only the thumb's direction against the vertical tells them apart. The 57 give each bone's
+    pitch, which is that elevation, by the same chain from the hand's pitch as `bends`
+    (through the thumb's metacarpal, which the paper's recordings got from an older device).
+    The hand's pitch is read from the index..pinky metacarpals, so the figure is within a few
+    degrees of the bone's own (Ultraleap's thumbs-ups: 3° at most).
+    """
+    x = np.atleast_2d(np.asarray(x57, dtype=np.float64))
+    steps = x[:, 2:42].reshape(len(x), 5, 4, 2)
+    hand_pitch = steps[:, 1:, 0, 0].mean(1) / 2.0
+    return np.degrees(hand_pitch - steps[:, 0, :, 0].sum(1))
+
+
 def finger_change(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     """Returns how far the fingers moved between two `bends` rows (..., 19) rad: degrees.
 

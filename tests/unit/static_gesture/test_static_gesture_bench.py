@@ -74,3 +74,12 @@ def test_the_recipe_of_a_model_keeps_its_number_of_networks():
     meta["open_set"] = meta["open_set"][0]
     meta["weights_sha256"] = weights_sha256(network.state_dict())
     assert bench.recipe_of(StaticClassifier.from_model(network, meta, samples=4)).members == 1
+
+
+def test_the_thumb_levels_of_the_recorded_thumbs_ups_are_summarised_without_the_hgr_cache():
+    levels = bench.thumb_levels(None)
+    (label, group), = levels.items()
+    assert "paper" in label and group["n"] > 100 and 0.0 <= group["below_-30"] <= 1.0
+    values = list(group["percentiles"].values())
+    assert values == sorted(values) and list(group["percentiles"]) == list(
+        bench.THUMB_PERCENTILES)

@@ -6,7 +6,7 @@ import pytest
 from cbgo.hands import features as F
 from cbgo.hands.model import HandShape, build_hand, mirrored_hand
 from cbgo.hands.poses import gesture_mean
-from cbgo.services.static_gesture import ultraleap
+from cbgo.services.static_gesture import invariant, ultraleap
 from cbgo.services.static_gesture.classifier import StaticClassifier, shipped_model_path
 from cbgo.wire import HANDS_FRAME, validate
 
@@ -77,6 +77,11 @@ def test_rolling_a_thumbs_up_over_points_its_thumb_down_and_keeps_its_shape():
     up = ultraleap.turned_like(POSES["thumbs_up"][0], reference)
     down = ultraleap.rolled_over(up)
     assert ultraleap.thumb_elevation_deg(up) > 30 and ultraleap.thumb_elevation_deg(down) < -30
+    # the 57 features tell the same within a few degrees (they read the hand's pitch from the
+    # metacarpals)
+    for hand in (up, down):
+        assert invariant.thumb_elevation(F.hands_features([hand], to_recorded_side=True))[0] == \
+            pytest.approx(ultraleap.thumb_elevation_deg(hand), abs=5.0)
     assert np.allclose(down["direction"], up["direction"], atol=1e-9)
     assert np.allclose(down["palm_normal"], -np.asarray(up["palm_normal"]), atol=1e-9)
     a, b = _joints(up).reshape(-1, 3), _joints(down).reshape(-1, 3)
