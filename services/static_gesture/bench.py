@@ -121,6 +121,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-crossval", action="store_true",
                         help="skip the cross-validation on real frames of unseen people")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
+    parser.add_argument("--plot", type=Path, default=None, metavar="DIR",
+                        help="also draw the cross-validation's changing hands, by how far "
+                             "through their change they are, as DIR/transitions.png")
     parser.add_argument("--takes", nargs="+", default=None, metavar="LABEL=FILE.mcap",
                         help="only score recorded takes (`cbgo record ... hands/frame` while "
                              "one pose is held; a label the model does not know, or none, is "
@@ -493,6 +496,47 @@ def _print_thumb_levels(levels: dict) -> None:
               for label, g in levels.items()))
 
 
+def plot_transitions(timed: dict, out: Path) -> Path:
+    """Draws what changing hands are answered, by tenth of their change's time, as a PNG.
+
+    Two panels, each frame read alone and with the service's rule (``timed``'s
+    ``by_time_alone`` and ``by_time``, `crossval._timed_by_time`); a line gives how far the
+    hand has gone by then.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    kinds = (("rejected", "rejected (none)", "#9e9e9e"), ("left", "the pose left", "#4c72b0"),
+             ("reached", "the pose reached", "#dd8452"),
+             ("other", "a gesture of neither", "#c44e52"))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    for ax, key, title in ((axes[0], "by_time_alone", "each frame read alone"),
+                           (axes[1], "by_time", "with the service's rule (default)")):
+        bins = timed[key]
+        centres = np.array([(b["lo"] + b["hi"]) / 2 for b in bins])
+        bottom = np.zeros(len(bins))
+        for name, label, colour in kinds:
+            share = 100 * np.array([b[name] for b in bins])
+            ax.bar(centres, share, width=0.09, bottom=bottom, color=colour, label=label)
+            bottom += share
+        ax.plot(centres, [100 * b["way"] for b in bins], "k.-", label="how far the hand has gone")
+        ax.set_title(title)
+        ax.set_xlabel("how far through the change's time")
+        ax.set_xlim(0, 1)
+        ax.set_ylim(0, 100)
+    axes[0].set_ylabel("changing hands (%)")
+    axes[1].legend(loc="center left", bbox_to_anchor=(1.02, 0.5), fontsize=8)
+    fig.suptitle(f"Hands changing pose (n={timed['n']}), held-out people: what they are answered")
+    fig.tight_layout()
+    path = out / "transitions.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def score_guinevere(clf: StaticClassifier) -> dict | None:
     """Scores Guinevere's cached takes (`guinevere`); None when the cache holds none."""
     specs = guinevere.cached_takes()
@@ -542,6 +586,9 @@ def run(args: argparse.Namespace) -> int:
         fig["latency"] = latency(clf.path or model_path, args.seconds, args.rate_hz,
                                  args.samples)
     _print(fig)
+    timed = ((fig.get("crossval") or {}).get("finger_motion") or {}).get("timed")
+    if args.plot is not None and timed:
+        print(f"wrote {plot_transitions(timed, args.plot)}")
     if args.json is not None:
         args.json.write_text(json.dumps(fig, indent=1) + "\n")
     return 0

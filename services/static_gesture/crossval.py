@@ -75,6 +75,8 @@ TIMED_PER_PERSON = 40
 TRANSITION_S = (0.25, 0.6)
 """How long a hand takes to change pose, seconds (drawn uniformly per transition)."""
 TIMED_RATE_HZ = 60.0
+TIME_TENTHS = 10
+"""Parts of a change's time the changing hands' answers are split by (`_timed_by_time`)."""
 """The frame rate the timed transitions are sampled at (a tracker's lowest usual rate)."""
 
 
@@ -132,22 +134,25 @@ def timed_transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndar
     transitions).
 
     Returns:
-        ``(now, before, which)``: (M, 57) features of every sampled hand, and of the same hand
-        `motion.WINDOW_S` earlier (the held first pose before the change began); (M,) the
-        index of each hand's transition in ``firsts`` and ``seconds``.
+        ``(now, before, which, through)``: (M, 57) features of every sampled hand, and of the
+        same hand `motion.WINDOW_S` earlier (the held first pose before the change began);
+        (M,) the index of each hand's transition in ``firsts`` and ``seconds``; (M,) how far
+        through its change's time each hand is (0-1).
     """
     if not len(firsts):
         return (np.zeros((0, F.N_FEATURES)), np.zeros((0, F.N_FEATURES)),
-                np.zeros(0, dtype=int))
+                np.zeros(0, dtype=int), np.zeros(0))
     x_from, step = _start_and_step(frames, firsts, seconds)
-    now, before, which = [], [], []
+    now, before, which, through = [], [], [], []
     for k, (start, change, seconds_long) in enumerate(zip(
             x_from, step, rng.uniform(*TRANSITION_S, len(step)), strict=True)):
         t = np.arange(1, int(np.ceil(seconds_long * TIMED_RATE_HZ))) / TIMED_RATE_HZ
         now.append(start + min_jerk(t / seconds_long)[:, None] * change)
         before.append(start + min_jerk((t - motion.WINDOW_S) / seconds_long)[:, None] * change)
         which.append(np.full(len(t), k))
-    return np.concatenate(now), np.concatenate(before), np.concatenate(which)
+        through.append(t / seconds_long)
+    return (np.concatenate(now), np.concatenate(before), np.concatenate(which),
+            np.concatenate(through))
 
 
 def _start_and_step(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray
@@ -257,8 +262,9 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
                                _answer_change(probs, previous))
         timed_rng = np.random.default_rng([seed, k, 1])
         timed_ends = transition_ends(sub, TIMED_PER_PERSON * len(people), timed_rng)
-        now, before, which = timed_transitions(sub, *timed_ends, timed_rng)
+        now, before, which, through = timed_transitions(sub, *timed_ends, timed_rng)
         parts[-1]["timed"] = _timed_answers(clf, now, before)
+        parts[-1]["timed_through"] = through
         parts[-1]["timed_ends"] = tuple(sub.labels()[ends][which] for ends in timed_ends)
         parts[-1]["timed_held"] = _held_other(answers(clf.names, probs), sub.labels(),
                                               *timed_ends)
@@ -318,6 +324,25 @@ def _held_other(answered: np.ndarray, labels: np.ndarray, firsts: np.ndarray,
     ends = (np.concatenate([labels[firsts], labels[seconds]]),
             np.concatenate([labels[seconds], labels[firsts]]))
     return (answered[both] != NONE) & (answered[both] != ends[0]) & (answered[both] != ends[1])
+
+
+def _timed_by_time(answered: np.ndarray, left: np.ndarray, reached: np.ndarray,
+                   through: np.ndarray) -> list[dict]:
+    """`_timed_split` of the changing hands by how far through their change's time they are.
+
+    Returns:
+        One split per tenth of the change's time, with ``lo``, ``hi`` and ``n`` added, and
+        ``way``, how far the hand has gone at the tenth's middle (`min_jerk`).
+    """
+    out = []
+    for lo in np.arange(TIME_TENTHS) / TIME_TENTHS:
+        sel = (through >= lo) & (through < lo + 1 / TIME_TENTHS)
+        if sel.any():
+            middle = lo + 0.5 / TIME_TENTHS
+            out.append({"lo": float(lo), "hi": float(lo + 1 / TIME_TENTHS), "n": int(sel.sum()),
+                        "way": float(min_jerk(np.array([middle]))[0]),
+                        **_timed_split(answered[sel], left[sel], reached[sel])})
+    return out
 
 
 def _timed_split(answered: np.ndarray, left: np.ndarray, reached: np.ndarray) -> dict:
@@ -438,8 +463,8 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     Returns:
         ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi (None: no bound), share,
         accuracy}], transitions: {10, 50} percentiles of their whole change (°), timed: {n,
-        rejected_alone, alone, held_other}, gates: [{lo, hi, tv, lost, worst, touched,
-        timed_rejected, timed}]}``:
+        rejected_alone, alone, held_other, by_time_alone, by_time}, gates: [{lo, hi, tv,
+        lost, worst, touched, timed_rejected, timed}]}``:
         ``worst``, the gesture whose frames answered right the rule rejects most, and that
         share; ``lost``, the
         share of the known frames answered right frame by frame that a rule rejects (top
@@ -447,8 +472,9 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
         at all; ``timed_rejected``, the timed transitions' hands (`timed_transitions`) it
         rejects, against ``rejected_alone`` without it; ``timed`` and ``alone``, what those
         hands are answered (`_timed_split`); ``held_other``, how often the poses they change
-        between, as held, read as a gesture of neither (`_held_other`). None when the parts
-        carry no motion.
+        between, as held, read as a gesture of neither (`_held_other`); ``by_time`` and
+        ``by_time_alone``, with the default rule and without, the same split per tenth of the
+        change's time (`_timed_by_time`). None when the parts carry no motion.
     """
     if "motion" not in parts[0]:
         return None
@@ -486,10 +512,13 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
         splits = [_timed_split(answered, *ends) for answered in timed]
         for gate, split in zip(gates, splits[1:], strict=True):
             gate["timed_rejected"], gate["timed"] = split["rejected"], split
+        through = np.concatenate([p["timed_through"] for p in parts])
+        by_time = [_timed_by_time(answered, *ends, through) for answered in timed[:2]]
     return {"n": int(rows.sum()),
             "timed": {"n": int(len(timed[0])), "rejected_alone": splits[0]["rejected"],
                       "alone": splits[0], "held_other": float(np.concatenate(
-                          [p["timed_held"] for p in parts]).mean())}
+                          [p["timed_held"] for p in parts]).mean()),
+                      "by_time_alone": by_time[0], "by_time": by_time[1]}
             if timed and len(timed[0]) else None,
             "held": {q: float(np.percentile(moved[rows], q)) for q in (50, 95, 99)},
             "by_motion": by_motion, "gates": gates,
@@ -645,6 +674,11 @@ def _print_finger_motion(fig: dict | None) -> None:
               f"{TIMED_RATE_HZ:g} Hz (n={timed['n']}), frame by frame: "
               + _timed_words(timed["alone"]) + f" (the poses they change between, as held, "
               f"read as another gesture: {timed['held_other']:.1%})")
+        print("    with the default rule, by tenth of the change's time (how far the hand has "
+              "gone): rejected / pose left / pose reached / another gesture: " + "; ".join(
+                  f"{b['lo']:.1f}-{b['hi']:.1f} ({b['way']:.0%}) {b['rejected']:.0%} / "
+                  f"{b['left']:.0%} / {b['reached']:.0%} / {b['other']:.0%}"
+                  for b in timed["by_time"]))
     print("  the service's rule, gestures fading into none as the fingers move and the "
           "answer changes (first: its default lines): " + "; ".join(
               f"{g['lo']:g}°-{g['hi']:g}° when the answer changed by {g['tv']:g} or more "

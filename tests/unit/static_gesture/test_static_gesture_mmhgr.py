@@ -7,7 +7,7 @@ import pytest
 from cbgo.hands import features as F
 from cbgo.hands.model import HandShape, build_hand
 from cbgo.hands.poses import gesture_pose
-from cbgo.services.static_gesture import crossval, invariant, mmhgr, motion, train
+from cbgo.services.static_gesture import bench, crossval, invariant, mmhgr, motion, train
 
 _POINTS = ("mcpPosition", "pipPosition", "dipPosition", "TipPosition")
 
@@ -248,7 +248,17 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
     # each changing hand is answered one of four ways (its two ends are different gestures)
     for split in [motion["timed"]["alone"]] + [g["timed"] for g in motion["gates"]]:
         assert sum(split.values()) == pytest.approx(1)
+    assert 0.0 <= motion["timed"]["held_other"] <= 1.0
+    for key in ("by_time_alone", "by_time"):  # every hand in one tenth of its change's time
+        tenths = motion["timed"][key]
+        assert sum(b["n"] for b in tenths) == motion["timed"]["n"]
+        assert all(sum(b[k] for k in ("rejected", "left", "reached", "other")) ==
+                   pytest.approx(1) for b in tenths)
+        ways = [b["way"] for b in tenths]
+        assert ways == sorted(ways) and 0 < ways[0] < 0.01 and 0.99 < ways[-1] < 1
     crossval.print_figures(fig)
+    png = bench.plot_transitions(motion["timed"], tmp_path / "plots")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_finger_motion_is_the_bends_change_since_the_takes_previous_kept_frame(tmp_path):
@@ -398,9 +408,10 @@ def test_a_timed_transition_moves_from_one_held_gesture_to_another_over_time(tmp
     mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     rng = np.random.default_rng(0)
-    now, before, which = crossval.timed_transitions(
+    now, before, which, through = crossval.timed_transitions(
         frames, *crossval.transition_ends(frames, 1, rng), rng)
     assert (which == 0).all()
+    assert (np.diff(through) > 0).all() and 0 < through[0] and through[-1] < 1
     x = mmhgr.features57(frames)
     first, second = (x[frames.pose == p][0] for p in ("fist_moved", "five"))
     if np.abs(now[0] - first).max() > np.abs(now[0] - second).max():  # drawn the other way
