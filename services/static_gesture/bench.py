@@ -587,8 +587,10 @@ def run(args: argparse.Namespace) -> int:
                                  args.samples)
     _print(fig)
     timed = ((fig.get("crossval") or {}).get("finger_motion") or {}).get("timed")
-    if args.plot is not None and timed:
-        print(f"wrote {plot_transitions(timed, args.plot)}")
+    if args.plot is not None:
+        print(f"wrote {plot_transitions(timed, args.plot)}" if timed else
+              "--plot: nothing drawn: the changing hands come from the cross-validation, which "
+              "did not run (--no-crossval, or no HGR cache)")
     if args.json is not None:
         args.json.write_text(json.dumps(fig, indent=1) + "\n")
     return 0
