@@ -75,9 +75,9 @@ TIMED_PER_PERSON = 40
 TRANSITION_S = (0.25, 0.6)
 """How long a hand takes to change pose, seconds (drawn uniformly per transition)."""
 TIMED_RATE_HZ = 60.0
+"""The frame rate the timed transitions are sampled at (a tracker's lowest usual rate)."""
 TIME_TENTHS = 10
 """Parts of a change's time the changing hands' answers are split by (`_timed_by_time`)."""
-"""The frame rate the timed transitions are sampled at (a tracker's lowest usual rate)."""
 
 
 def turn_rotations(n: int, axis: str, deg: float) -> np.ndarray:
@@ -255,8 +255,7 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
                                np.random.default_rng([seed, k]))
         x_mid, pairs = transitions(sub, *ends)
         mid = clf.predict_features(x_mid) if len(x_mid) else np.zeros((0, len(clf.names)))
-        parts[-1]["transitions"] = (pairs, is_rejected(np.array(clf.names)[mid.argmax(1)],
-                                                     mid.max(1)))
+        parts[-1]["transitions"] = (pairs, answers(clf.names, mid) == NONE)
         moved, previous = finger_motion(sub)
         parts[-1]["motion"] = (moved, _whole_change(x_test, *ends),
                                _answer_change(probs, previous))
@@ -496,7 +495,7 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
     for lo, hi, tv in FINGER_GATES:
         keep = motion.keep_share(moved, lo, hi, changed, tv)
         faded = fade_into_none(probs, keep, list(names).index(NONE))
-        still = ~is_rejected(names[faded.argmax(1)], faded.max(1))
+        still = answers(list(names), faded) != NONE
         lost = right & ~still & rows
         by_class = {}
         for g in np.unique(label[rows]):
