@@ -155,6 +155,36 @@ def timed_transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndar
             np.concatenate(through))
 
 
+def appearing_transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray,
+                          rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Returns the hands of transitions that a tracker first finds mid-change, while young.
+
+    Why: a hand often comes into view while it forms its pose. For its first `motion.WINDOW_S`
+    the service has no frame a window back and compares it with its first frame
+    (`motion.FingerMotion`). Each transition is timed as in `timed_transitions`; the tracker
+    finds its hand at a moment drawn uniformly over the change (``rng``), and the hand's frames
+    from then on, while younger than the window and still changing, are returned.
+
+    Returns:
+        ``(now, first, which)``: (M, 57) features of every such hand and of its first frame;
+        (M,) the index of each hand's transition in ``firsts`` and ``seconds``.
+    """
+    now, first, which = [], [], []
+    if len(firsts):
+        x_from, step = _start_and_step(frames, firsts, seconds)
+        for k, (start, change, seconds_long) in enumerate(zip(
+                x_from, step, rng.uniform(*TRANSITION_S, len(step)), strict=True)):
+            found = rng.uniform(0.0, seconds_long)
+            t = found + np.arange(int(np.ceil(motion.WINDOW_S * TIMED_RATE_HZ))) / TIMED_RATE_HZ
+            t = t[t < seconds_long]
+            now.append(start + min_jerk(t / seconds_long)[:, None] * change)
+            first.append(np.repeat(now[-1][:1], len(t), axis=0))
+            which.append(np.full(len(t), k))
+    if not now:
+        return np.zeros((0, F.N_FEATURES)), np.zeros((0, F.N_FEATURES)), np.zeros(0, dtype=int)
+    return np.concatenate(now), np.concatenate(first), np.concatenate(which)
+
+
 def _start_and_step(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Returns the first frames' 57 features and the step to the seconds' (yaws wrapped)."""
@@ -267,6 +297,12 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
         parts[-1]["timed_ends"] = tuple(sub.labels()[ends][which] for ends in timed_ends)
         parts[-1]["timed_held"] = _held_other(answers(clf.names, probs), sub.labels(),
                                               *timed_ends)
+        found_ends = transition_ends(sub, TIMED_PER_PERSON * len(people),
+                                     np.random.default_rng([seed, k, 2]))
+        now, first, which = appearing_transitions(sub, *found_ends,
+                                                  np.random.default_rng([seed, k, 3]))
+        parts[-1]["appearing"] = _timed_answers(clf, now, first)[:2]
+        parts[-1]["appearing_ends"] = tuple(sub.labels()[ends][which] for ends in found_ends)
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
@@ -461,7 +497,7 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
 
     Returns:
         ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi (None: no bound), share,
-        accuracy}], transitions: {10, 50} percentiles of their whole change (°), timed: {n,
+        accuracy}], transitions: {10, 50} percentiles of their whole change (°), appearing, timed: {n,
         rejected_alone, alone, held_other, by_time_alone, by_time}, gates: [{lo, hi, tv,
         lost, worst, touched, timed_rejected, timed}]}``:
         ``worst``, the gesture whose frames answered right the rule rejects most, and that
@@ -473,7 +509,8 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
         hands are answered (`_timed_split`); ``held_other``, how often the poses they change
         between, as held, read as a gesture of neither (`_held_other`); ``by_time`` and
         ``by_time_alone``, with the default rule and without, the same split per tenth of the
-        change's time (`_timed_by_time`). None when the parts carry no motion.
+        change's time (`_timed_by_time`); ``appearing``, the hands a tracker finds mid-change
+        (`_appearing_figures`). None when the parts carry no motion.
     """
     if "motion" not in parts[0]:
         return None
@@ -519,10 +556,29 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
                           [p["timed_held"] for p in parts]).mean()),
                       "by_time_alone": by_time[0], "by_time": by_time[1]}
             if timed and len(timed[0]) else None,
+            "appearing": _appearing_figures(parts),
             "held": {q: float(np.percentile(moved[rows], q)) for q in (50, 95, 99)},
             "by_motion": by_motion, "gates": gates,
             "transitions": {q: float(np.percentile(whole, q)) for q in (10, 50)}
             if len(whole) else None}
+
+
+def _appearing_figures(parts: list[dict]) -> dict | None:
+    """What the hands found mid-change are answered while young (`appearing_transitions`).
+
+    Returns:
+        ``{n, alone, with_first}``: `_timed_split` of their answers read alone (the service
+        before young hands were compared with their first frame) and with the default rule
+        against their first frame. None when the parts carry none.
+    """
+    if "appearing" not in parts[0]:
+        return None
+    alone, ruled = (np.concatenate([p["appearing"][k] for p in parts]) for k in (0, 1))
+    if not len(alone):
+        return None
+    ends = [np.concatenate([p["appearing_ends"][k] for p in parts]) for k in (0, 1)]
+    return {"n": int(len(alone)), "alone": _timed_split(alone, *ends),
+            "with_first": _timed_split(ruled, *ends)}
 
 
 def _flat_hands(pose: np.ndarray, pred: np.ndarray, top: np.ndarray) -> dict:
@@ -678,6 +734,11 @@ def _print_finger_motion(fig: dict | None) -> None:
                   f"{b['lo']:.1f}-{b['hi']:.1f} ({b['way']:.0%}) {b['rejected']:.0%} / "
                   f"{b['left']:.0%} / {b['reached']:.0%} / {b['other']:.0%}"
                   for b in timed["by_time"]))
+    found = fig.get("appearing")
+    if found:
+        print(f"  hands first found mid-change, in their first {motion.WINDOW_S:g} s (n="
+              f"{found['n']}): read alone {_timed_words(found['alone'])}; compared with their "
+              f"first frame (the service) {_timed_words(found['with_first'])}")
     print("  the service's rule, gestures fading into none as the fingers move and the "
           "answer changes (first: its default lines): " + "; ".join(
               f"{g['lo']:g}°-{g['hi']:g}° when the answer changed by {g['tv']:g} or more "

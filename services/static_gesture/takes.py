@@ -112,8 +112,8 @@ def finger_motion(hands: list[dict], stamps: list[float], x57: np.ndarray, probs
 
     Measured as the service measures it (`motion.FingerMotion`: each hand followed by its side
     and id), hand by hand in recording order, from the hands' 57 features (``x57``, as the
-    model reads them) and the model's answers (``probs``); NaN where there is nothing to
-    compare with.
+    model reads them) and the model's answers (``probs``); a hand younger than ``window_s``
+    against its first frame; NaN for a hand's first frame.
     """
     if not len(hands):
         return np.zeros(0), np.zeros(0)

@@ -425,3 +425,25 @@ def test_a_timed_transition_moves_from_one_held_gesture_to_another_over_time(tmp
     distance = np.abs(now - first).max(1)
     assert (np.diff(distance) >= -1e-9).all() and 0 < distance[0] < distance[-1]
     assert np.abs(now[-1] - second).max() > 0  # the held second pose is not a transition
+
+
+def test_a_hand_found_mid_change_is_followed_while_younger_than_the_window(tmp_path):
+    write_dataset(tmp_path / "src", people=(1,), poses=("fist_moved", "five"), per_pose=1)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    rng = np.random.default_rng(3)
+    ends = crossval.transition_ends(frames, 20, rng)
+    now, first, which = crossval.appearing_transitions(frames, *ends, rng)
+    young = int(np.ceil(motion.WINDOW_S * crossval.TIMED_RATE_HZ))
+    counts = np.bincount(which, minlength=20)
+    assert 1 <= counts.min() and counts.max() <= young  # found before the change's end
+    assert (counts < young).any()  # some found so late the change ends before the window
+    for k in range(20):
+        mine = which == k
+        assert np.allclose(first[mine], now[mine][0])  # compared with the frame it was found at
+    x = mmhgr.features57(frames)
+    ends_x = [x[frames.pose == p][0] for p in ("fist_moved", "five")]
+    # strictly inside a change: never the held pose it leaves, nor the one it reaches
+    assert all(np.abs(now - end).max(1).min() > 0 for end in ends_x)
+    empty = crossval.appearing_transitions(frames, np.zeros(0, int), np.zeros(0, int), rng)
+    assert [a.shape[0] for a in empty] == [0, 0, 0]

@@ -65,7 +65,8 @@ def test_the_answer_is_compared_with_the_same_frame_as_the_fingers():
     answers_then = [[0.9, 0.1], [0.5, 0.5], [0.1, 0.9]]
     got = [tracker.measure(five, 1.0 + i * 0.05, bends_of(five), np.array([p]))
            for i, p in enumerate(answers_then)]
-    assert np.isnan(got[1][1]).all()  # 0.05 s: nothing a window back yet
+    assert np.isnan(got[0][1]).all()  # its first frame: nothing to compare with
+    assert got[1][1] == pytest.approx([0.4])  # 0.05 s old: against its first frame
     assert got[2][1] == pytest.approx([0.8])  # against the frame 0.1 s back
     reloaded = tracker.measure(five, 1.2, bends_of(five), np.array([[0.2, 0.3, 0.5]]))
     assert not np.isnan(reloaded[0]).any() and np.isnan(reloaded[1]).all()  # another vocabulary
@@ -78,8 +79,13 @@ def test_each_hand_is_compared_with_its_own_frame_a_window_before():
         hands = [hand(blend("five", "five", 0)), hand(blend("five", "grab", i / 29), 2)]
         moved.append(moved_of(tracker, hands, 100.0 + i * 0.01))
     moved = np.array(moved)
-    assert np.isnan(moved[:10]).all() and not np.isnan(moved[10:]).any()  # nothing 0.1 s back
-    assert moved[10:, 0].max() < 1e-6 and moved[10:, 1].min() > 5.0
+    assert np.isnan(moved[0]).all() and not np.isnan(moved[1:]).any()  # first frames: nothing
+    assert moved[1:, 0].max() < 1e-6 and moved[10:, 1].min() > 5.0  # the held hand stays still
+    # younger than the window: against the hand's first frame, so the closing hand already moves
+    assert 0 < moved[1, 1] < moved[5, 1] < moved[9, 1]
+    assert moved[9, 1] == pytest.approx(invariant.finger_change(
+        bends_of([hand(blend("five", "grab", 0))]), bends_of([hand(blend("five", "grab",
+                                                                            9 / 29))]))[0])
     # the same change over 0.1 s, whatever the frame rate
     assert moved[20, 1] == pytest.approx(invariant.finger_change(
         bends_of([hand(blend("five", "grab", 10 / 29))]), bends_of([hand(blend("five", "grab",
@@ -101,8 +107,9 @@ def test_a_hand_gone_for_long_or_time_going_back_starts_afresh():
 def test_a_source_whose_time_stands_still_keeps_a_bounded_history():
     tracker = motion.FingerMotion()
     five = [hand(blend("five", "five", 0))]
+    assert np.isnan(moved_of(tracker, five, 7.0)[0])
     for _ in range(3 * motion.MAX_FRAMES_KEPT):
-        assert np.isnan(moved_of(tracker, five, 7.0)[0])
+        assert moved_of(tracker, five, 7.0)[0] == 0.0  # against its first frame
     assert len(tracker.tracks["right/1"]) == motion.MAX_FRAMES_KEPT
 
 
@@ -136,6 +143,18 @@ def test_through_the_service_a_hand_changing_pose_is_none_and_a_held_one_keeps_i
     off = answers(service(moving_deg=0.0), poses)
     assert {name for name, _ in off[middle]} == {"point", "grab"}
     assert off[:30] == got[:30] and off[-20:] == got[-20:]  # held poses: the same answers
+
+
+def test_a_hand_found_while_it_changes_pose_is_none_before_it_is_a_window_old():
+    # the tracker finds the hand a third into a point closing into a fist (0.3 s, 60 Hz)
+    change = [blend("point", "grab", s * s * (3 - 2 * s)) for s in np.linspace(0, 1, 18)]
+    poses = change[6:] + [blend("grab", "grab", 0)] * 30
+    got, off = answers(service(), poses), answers(service(moving_deg=0.0), poses)
+    young = int(motion.WINDOW_S * 60)  # frames with nothing a window back
+    flips = [i for i in range(1, young) if off[i][0] != off[i - 1][0]]
+    assert flips and off[flips[0]][0] == "grab"  # read alone: point, then grab, while young
+    assert got[flips[0]][0] == "none"  # against its first frame: a pose forming
+    assert got[0] == off[0] and got[-20:] == off[-20:]  # its first frame and the held fist
 
 
 def test_a_change_of_one_finger_is_none_where_its_reading_flips():

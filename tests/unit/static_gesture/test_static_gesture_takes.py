@@ -122,14 +122,16 @@ def test_finger_motion_follows_each_hand_by_its_id_over_the_window():
     probs[1::2] = np.stack([1 - share, share], 1)  # the closing hand's answer turns with it
     moved, changed = takes.finger_motion(hands, stamps, x, probs, window_s=0.1)
     moved, changed = moved.reshape(30, 2), changed.reshape(30, 2)
-    assert np.isnan(moved[:10]).all() and not np.isnan(moved[10:]).any()  # the first 0.1 s
-    assert moved[10:, 0].max() < 1e-6 and moved[10:, 1].min() > 5.0
-    assert np.isnan(changed[:10]).all()
-    assert changed[10:, 0] == pytest.approx(0.0)
+    assert np.isnan(moved[0]).all() and not np.isnan(moved[1:]).any()  # the first frame alone
+    assert moved[1:, 0].max() < 1e-6 and moved[10:, 1].min() > 5.0
+    assert 0 < moved[1, 1] < moved[9, 1]  # younger than 0.1 s: against the first frame
+    assert np.isnan(changed[0]).all()
+    assert changed[1:, 0] == pytest.approx(0.0)
+    assert changed[1:10, 1] == pytest.approx(np.arange(1, 10) / 29)
     # against the newest frame at least 0.1 s back: 10 frames, or 11 where the sum rounds
     assert ((changed[10:, 1] > 10 / 29 - 1e-9) & (changed[10:, 1] < 11 / 29 + 1e-9)).all()
     alone = takes.finger_motion(hands[1::2], stamps[1::2], x[1::2], probs[1::2], window_s=1.0)
-    assert np.isnan(alone[0]).all() and np.isnan(alone[1]).all()
+    assert np.isnan(alone[0][0]) and changed[9, 1] == pytest.approx(alone[1][9])  # 0.09 s old
 
 
 def test_a_take_is_scored_as_the_service_answers_a_hand_whose_fingers_move(tmp_path, shipped,
