@@ -497,9 +497,9 @@ def _motion_figures(parts: list[dict], label: np.ndarray, right: np.ndarray) -> 
 
     Returns:
         ``{n, held: {50, 95, 99} percentiles (°), by_motion: [{lo, hi (None: no bound), share,
-        accuracy}], transitions: {10, 50} percentiles of their whole change (°), appearing, timed: {n,
-        rejected_alone, alone, held_other, by_time_alone, by_time}, gates: [{lo, hi, tv,
-        lost, worst, touched, timed_rejected, timed}]}``:
+        accuracy}], transitions: {10, 50} percentiles of their whole change (°), appearing,
+        timed: {n, rejected_alone, alone, held_other, by_time_alone, by_time}, gates: [{lo,
+        hi, tv, lost, worst, touched, timed_rejected, timed}]}``:
         ``worst``, the gesture whose frames answered right the rule rejects most, and that
         share; ``lost``, the
         share of the known frames answered right frame by frame that a rule rejects (top
