@@ -9,7 +9,8 @@ Behaviour (the contract is services/static_gesture/README.md):
   class, when the model has it), ``model`` its id. There is no threshold: an uncertain hand
   gets its honest, flat vector. A frame with no hand gives no message;
 - a hand whose fingers are moving is a pose forming, not held: each hand is followed by its
-  side and id, and when its fingers moved more than ``--still-deg`` in the last 0.15 s its
+  side and id, and when its fingers moved more than ``--still-deg`` in the last 0.15 s (since
+  its first frame, while it is younger) and its answer changed by ``--changed-tv`` its
   gestures fade into ``none``, wholly from ``--moving-deg`` (`motion`; 0 turns it off);
 - the model: ``--model PATH``, else the user's model (``data_dir()/models/static-gesture``, what
   ``cbgo train static`` and ``cbgo gestures record`` write) if it exists, else the one shipped

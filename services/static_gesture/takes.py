@@ -19,7 +19,8 @@ Rules:
   p < 0.5), as the episode service reads it.
 - Messages that break the ``hands/frame`` contract are counted and skipped, never scored.
 - How still the tracker holds the pose: per hand, how far its fingers moved in the last
-  `motion.WINDOW_S`, as the service measures it, reported as percentiles. The rule on hands
+  `motion.WINDOW_S` (since its first frame while it is younger), as the service measures it,
+  reported as percentiles. The rule on hands
   that change pose (README: "Fingers that move") fades a held pose only where this crosses its
   line while the answer changes; how many hands it rejected, and the take read frame by frame
   without it, are printed beside.
