@@ -29,9 +29,10 @@
 
 4. **Real people** (``--real DIR``): the SHREC'17 skeletons or Leap Motion recordings
    (LeapJS frames, `leapjs`) through live services, see `realbench`; ``--realism DIR``
-   compares the simulated users' swipe habits with theirs. ``--live-sim N`` plays N held-out
-   simulated users the same way (`realbench.simulated_trials`: each dynamic gesture once per
-   appearance of the hand, rotate included), to score the episode summary on them too.
+   compares the simulated users' swipe habits with theirs (``--plot FIG`` draws them).
+   ``--live-sim N`` plays N held-out simulated users the same way
+   (`realbench.simulated_trials`: each dynamic gesture once per appearance of the hand,
+   rotate included), to score the episode summary on them too.
 
 Examples::
 
@@ -41,7 +42,7 @@ Examples::
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --mirror   # the same as left hands
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --stream-returns   # streams with returns
     cbgo bench dynamic --real ~/.cache/cbgo/leapmotion-left --per-class 0   # real left hands
-    cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec
+    cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec --plot /tmp/fig
     cbgo bench dynamic --live-sim 16           # simulated users through live services
     cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
     cbgo bench dynamic --ranges train          # held-out users inside the training range
@@ -51,6 +52,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import tempfile
 import threading
 import time
@@ -118,6 +120,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     real.add_argument("--realism", type=Path, metavar="DIR", default=None,
                       help="instead: compare the simulated users' swipe habits with the real "
                            "train split's in this datasetShrec folder")
+    real.add_argument("--plot", type=Path, metavar="DIR", default=None,
+                      help="with --realism: also draw the habits, real beside simulated, as "
+                           "DIR/realism.png")
 
 
 # ============================================================================ accuracy
@@ -285,6 +290,9 @@ def _print_block(title: str, block: dict, names: list[str]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Runs the three parts and prints their figures (or the real-data bench)."""
+    if args.plot is not None and args.realism is None:
+        print("--plot draws the --realism comparison: give --realism DIR too", file=sys.stderr)
+        return 2
     if args.real is not None:
         return realbench.run_real(args.real, args.split, args.per_class, args.streams,
                                   args.seed, args.json, args.mirror, args.stream_returns)
@@ -301,6 +309,8 @@ def run(args: argparse.Namespace) -> int:
         table = realbench.print_realism(real, simulated)
         if args.json:
             args.json.write_text(json.dumps(table, indent=1))
+        if args.plot:
+            print(f"wrote {realbench.plot_realism(real, simulated, args.plot)}")
         return 0
     library = Library(args.templates, None).load()
     classifier = library.classifier()

@@ -701,8 +701,13 @@ HABITS = ("length_mm", "roll_deg", "roll_across_deg", "start_along", "duration_s
           "over_preparation")
 
 
-def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: float
-           ) -> list[dict]:
+NEIGHBOUR_S = 1.5
+"""A stroke this soon after a swipe is its return, this soon before it its preparation
+(`habits`)."""
+
+
+def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: float,
+           end_t: float = np.inf) -> list[dict]:
     """Measures each swipe stroke of one recording, the way real and simulated are compared.
 
     Per final window labelled a swipe: its length along the swipe's direction, the palm roll
@@ -710,11 +715,15 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
     hand's to the right), where it started along its direction relative to `middle` (the
     recording's median palm position) in units of its length, its duration and peak speed, how
     peaked its speed profile is (that peak speed over the mean speed along its path), its bow
-    (largest sideways deviation / length), and whether a stroke followed it within 1.5 s (a
-    return) and that stroke's peak speed relative to it; when that stroke reverses it
-    (`reverses`), how far it went relative to the swipe, and when a stroke within 1.5 s before
-    the swipe reverses it (a preparation), how much farther the swipe went: what
-    `ReturnFilter.farther` is chosen on.
+    (largest sideways deviation / length), and whether a stroke followed it within
+    `NEIGHBOUR_S` (a return) and that stroke's peak speed relative to it; when that stroke
+    reverses it (`reverses`), how far it went relative to the swipe, and when a stroke within
+    `NEIGHBOUR_S` before the swipe reverses it (a preparation), how much farther the swipe
+    went: what `ReturnFilter.farther` is chosen on. Whether a swipe was followed is left
+    unknown (NaN) when the recording ends (``end_t``, the time of its last frame) sooner than
+    `NEIGHBOUR_S` after it, whatever followed: recordings cut after the swipe would otherwise
+    count as people who never return, and counting only the returns they show would count
+    too many.
     """
     finals = [(w, t) for w, t in zip(windows, truths, strict=True) if w.final]
     out = []
@@ -725,8 +734,9 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
         xyz = w.obs[:, :3]
         length = max(float(xyz[-1] @ d), 1.0)
         start = w.origin if w.origin is not None else middle
-        after = [v for v, _ in finals[i + 1:] if v.t_start - w.t_end <= 1.5]
-        before = [v for v, _ in finals[:i] if w.t_start - v.t_end <= 1.5][-1:]
+        after = [v for v, _ in finals[i + 1:] if v.t_start - w.t_end <= NEIGHBOUR_S]
+        before = [v for v, _ in finals[:i] if w.t_start - v.t_end <= NEIGHBOUR_S][-1:]
+        seen_after = end_t - w.t_end >= NEIGHBOUR_S  # whatever came, or unbiased
         roll = float(np.degrees(w.obs[-1, 3] / roll_scale))
         across = d[0] != 0 and (d[0] < 0) == (w.side == "right")
         out.append({"length_mm": length, "roll_deg": roll,
@@ -735,7 +745,7 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
                     "duration_s": w.t_end - w.t_start, "peak_mm_s": w.peak_speed,
                     "peak_over_mean": w.peak_speed / _mean_speed(w),
                     "bow": float(np.abs(xyz - np.outer(xyz @ d, d)).max() / length),
-                    "returned": float(bool(after)),
+                    "returned": float(bool(after)) if seen_after else np.nan,
                     "return_speed_ratio": (after[0].peak_speed / max(w.peak_speed, 1.0)
                                            if after else np.nan),
                     "return_length_ratio": _length_ratio(after[:1], w),
@@ -773,7 +783,7 @@ def real_habits(root: Path, split: str, config) -> list[dict]:
         windows = shrec.segment(seq, segmenter)
         palms = seq.joints()[:, 1] * 1000.0 + shrec.DEFAULT_OFFSET_MM
         out += habits(windows, shrec.label_windows(seq.name, windows), np.median(palms, 0),
-                      segmenter.config.roll_scale_mm_per_rad)
+                      segmenter.config.roll_scale_mm_per_rad, (len(palms) - 1) / shrec.RATE_HZ)
     return out
 
 
@@ -789,12 +799,22 @@ def simulated_habits(users: int, seed: int, config) -> list[dict]:
         windows = [w for f in frames for w in segmenter.update(f.t, f.hands)]
         times = np.array([f.t for f in frames])
         truths = [simdata.truth_of(w, times, [f.label for f in frames]) for w in windows]
-        out += habits(windows, truths, CENTRE_MM, segmenter.config.roll_scale_mm_per_rad)
+        out += habits(windows, truths, CENTRE_MM, segmenter.config.roll_scale_mm_per_rad,
+                      float(times[-1]))
     return out
 
 
+SHARE_HABITS = ("returned",)
+"""Habits that are yes or no: printed and drawn as the share of swipes, not as percentiles."""
+
+
 def print_realism(real: list[dict], simulated: list[dict]) -> dict:
-    """Prints the habits side by side (median [10th, 90th percentile]); returns them."""
+    """Prints the habits side by side (median [10th, 90th percentile]); returns them.
+
+    A yes/no habit (`SHARE_HABITS`) is given as its share of the swipes it is known for and
+    their number, in the places of the median and the 10th percentile (its percentiles would
+    only say 0 or 1).
+    """
     table = {}
     print(f"\n{'swipe habit':<20}{'real (SHREC train)':>26}{'simulated':>26}")
     for name in HABITS:
@@ -802,12 +822,81 @@ def print_realism(real: list[dict], simulated: list[dict]) -> dict:
         for rows in (real, simulated):
             values = np.array([r[name] for r in rows], dtype=float)
             values = values[np.isfinite(values)]
-            cells.append([float(np.median(values)), float(np.percentile(values, 10)),
-                          float(np.percentile(values, 90))] if len(values) else [np.nan] * 3)
+            if name in SHARE_HABITS:
+                cells.append([float(values.mean()) if len(values) else np.nan,
+                              float(len(values)), np.nan])
+            else:
+                cells.append([float(np.median(values)), float(np.percentile(values, 10)),
+                              float(np.percentile(values, 90))] if len(values) else [np.nan] * 3)
         table[name] = {"real": cells[0], "simulated": cells[1]}
-        print(f"{name:<20}" + "".join(f"{m:>10.2f} [{lo:6.2f},{hi:7.2f}]" for m, lo, hi in cells))
+        if name in SHARE_HABITS:
+            print(f"{name + ' (share)':<20}" + "".join(f"{m:>10.2f} of {n:<13.0f}"
+                                                        for m, n, _ in cells))
+        else:
+            print(f"{name:<20}" + "".join(f"{m:>10.2f} [{lo:6.2f},{hi:7.2f}]"
+                                          for m, lo, hi in cells))
     print(f"{'strokes':<20}{len(real):>26}{len(simulated):>26}")
     return table
+
+
+HABIT_WORDS = {"length_mm": "length along the swipe (mm)", "roll_deg": "palm roll (°)",
+               "roll_across_deg": "palm roll, swiping across the body (°)",
+               "start_along": "start along the swipe from the middle (lengths)",
+               "duration_s": "duration (s)", "peak_mm_s": "peak speed (mm/s)",
+               "peak_over_mean": "peak over mean speed", "bow": "bow (sideways / length)",
+               "returned": f"followed by a stroke within {NEIGHBOUR_S:g} s",
+               "return_speed_ratio": "return's peak speed / the swipe's",
+               "return_length_ratio": "return's length / the swipe's",
+               "over_preparation": "swipe's length / its preparation's"}
+"""What each of `HABITS` is, as the realism figure labels it."""
+
+
+def plot_realism(real: list[dict], simulated: list[dict], out: Path) -> Path:
+    """Draws each habit's distribution, real beside simulated, as ``out/realism.png``.
+
+    One panel per habit of `HABITS`: the two sets' histograms over common bins (each summing
+    to 1, so sets of different sizes compare), their medians as lines; the yes/no habit
+    (``returned``) as the two shares. What `print_realism` prints, to look at.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    sets = (("real (SHREC'17 train split)", real, "#4c72b0"),
+            ("simulated users", simulated, "#dd8452"))
+    fig, axes = plt.subplots(3, 4, figsize=(14, 9))
+    for ax, name in zip(axes.flat, HABITS, strict=True):
+        values = [np.array([r[name] for r in rows], dtype=float) for _, rows, _ in sets]
+        values = [v[np.isfinite(v)] for v in values]
+        ax.set_title(HABIT_WORDS[name], fontsize=9)
+        if name in SHARE_HABITS:
+            shares = [float(v.mean()) if len(v) else 0.0 for v in values]
+            ax.bar([0, 1], shares, color=[c for _, _, c in sets])
+            ax.set_xticks([0, 1], [f"real\n(of {len(values[0])} swipes)",
+                                   f"simulated\n(of {len(values[1])})"])
+            ax.set_ylim(0, 1)
+            continue
+        both = np.concatenate(values)
+        if not len(both):
+            continue
+        lo, hi = np.percentile(both, [1, 99])
+        edges = np.linspace(lo, hi, 25) if hi > lo else np.linspace(lo - 0.5, lo + 0.5, 3)
+        for (label, _, colour), v in zip(sets, values, strict=True):
+            if len(v):
+                ax.hist(np.clip(v, edges[0], edges[-1]), bins=edges, color=colour, alpha=0.5,
+                        weights=np.full(len(v), 1.0 / len(v)), label=label)
+                ax.axvline(float(np.median(v)), color=colour, lw=1.5)
+        ax.tick_params(labelsize=8)
+    axes.flat[0].legend(fontsize=8)
+    fig.suptitle(f"Swipe habits: real people ({len(real)} swipes) beside simulated users "
+                 f"({len(simulated)}); lines: medians")
+    fig.tight_layout()
+    path = out / "realism.png"
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
 
 
 # ============================================================ synthetic streams (simulated)

@@ -301,3 +301,38 @@ def test_the_cli_names_a_missing_data_folder_without_a_traceback(tmp_path, capsy
     err = capsys.readouterr().err
     assert ended.value.code == 2 and err.startswith("cbgo: no ") and "Traceback" not in err
     assert str(tmp_path) in err
+
+
+def test_whether_a_swipe_was_returned_is_unknown_where_its_recording_ends_too_soon(dataset):
+    (seq,) = shrec.read_split(dataset, "train")
+    windows = shrec.segment(seq, Segmenter())
+    truths = shrec.label_windows(seq.name, windows)
+    middle = np.array(shrec.FIELD_CENTRE_MM)
+    end_t = (len(seq.joints()) - 1) / shrec.RATE_HZ
+    (cut,) = realbench.habits(windows, truths, middle, 100.0, end_t)
+    assert np.isnan(cut["returned"])  # the recording stops 0.3 s after the swipe
+    (held,) = realbench.habits(windows, truths, middle, 100.0, end_t + realbench.NEIGHBOUR_S)
+    assert held["returned"] == 0.0  # long enough to have seen a return: there was none
+
+
+def test_the_realism_table_gives_a_yes_or_no_habit_as_a_share_and_draws_the_habits(tmp_path,
+                                                                                   capsys):
+    rows = [dict.fromkeys(realbench.HABITS, float(k)) | {"returned": r}
+            for k, r in enumerate((1.0, 0.0, np.nan, 1.0))]
+    same = [dict.fromkeys(realbench.HABITS, 2.0)] * 2  # one value: still drawn
+    table = realbench.print_realism(rows, same)
+    assert table["returned"]["real"][:2] == [pytest.approx(2 / 3), 3.0]  # of the 3 known
+    assert table["length_mm"]["real"][0] == 1.5 and table["length_mm"]["simulated"][0] == 2.0
+    assert "returned (share)" in capsys.readouterr().out
+    path = realbench.plot_realism(rows, same, tmp_path / "figures")
+    assert path == tmp_path / "figures" / "realism.png"
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_plot_without_realism_says_what_it_draws(tmp_path, capsys):
+    from cbgo.cli.main import main
+
+    with pytest.raises(SystemExit) as ended:
+        main(["bench", "dynamic", "--plot", str(tmp_path)])
+    assert ended.value.code == 2 and "--realism" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())  # nothing was run or drawn
