@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 BACKOFF_FIRST_S, BACKOFF_MAX_S, BACKOFF_RESET_AFTER_S = 0.5, 30.0, 30.0
 STOP_GRACE_S = 5.0
+DRAIN_S = 2.0
+"""How long a stopped child's output is still copied to ours, at most."""
 _COLORS = ("\033[36m", "\033[32m", "\033[35m", "\033[33m", "\033[34m", "\033[91m",
            "\033[96m", "\033[92m")
 _RESET = "\033[0m"
@@ -48,6 +50,7 @@ class Child:
     restarts: int = 0
     backoff_s: float = BACKOFF_FIRST_S
     restart_at: float | None = None
+    forwarder: threading.Thread | None = None  # copies its output to ours
 
 
 class Supervisor:
@@ -87,8 +90,9 @@ class Supervisor:
             start_new_session=True, text=True, bufsize=1, errors="replace")
         child.started_at = time.monotonic()
         index = self.children.index(child)
-        threading.Thread(target=self._forward, args=(child, child.proc, index),
-                         daemon=True).start()
+        child.forwarder = threading.Thread(target=self._forward, args=(child, child.proc, index),
+                                           daemon=True)
+        child.forwarder.start()
 
     def _forward(self, child: Child, proc: subprocess.Popen, index: int) -> None:
         for line in proc.stdout:
@@ -124,10 +128,17 @@ class Supervisor:
             child.backoff_s = min(BACKOFF_MAX_S, child.backoff_s * 2)
 
     def stop_all(self) -> None:
-        """Stops services in reverse order, then the router: SIGTERM, then SIGKILL."""
+        """Stops services in reverse order, then the router: SIGTERM, then SIGKILL.
+
+        Returns once every child's last lines are copied to our output (or after
+        `DRAIN_S` for one whose output stays open: a grandchild may hold it).
+        """
         self.stopping.set()
         for child in reversed(self.children):
             self._stop(child)
+        for child in self.children:
+            if child.forwarder is not None:
+                child.forwarder.join(DRAIN_S)
 
     def _stop(self, child: Child) -> None:
         proc = child.proc

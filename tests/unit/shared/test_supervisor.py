@@ -53,3 +53,38 @@ def test_the_alive_watcher_reports_ready_once_and_then_losses_and_returns():
     watcher.on_token("episode", True)
     assert said[0].startswith("ready: episode, router alive after")
     assert said[1:] == ["episode lost its liveliness token", "episode is alive again"]
+
+
+class SlowOutput:
+    """A terminal that takes 2 ms a line: copying a child's output takes time."""
+
+    def __init__(self):
+        self.lines = []
+
+    def write(self, text):
+        time.sleep(0.002)
+        self.lines.append(text)
+
+    def flush(self):
+        pass
+
+
+def test_a_stopped_childs_last_lines_are_ours_before_stop_all_returns(monkeypatch):
+    # `cbgo up` exits right after stop_all: what a child says as it stops must be out by then.
+    # The child says 200 lines and exits at once; copying them takes about 0.4 s.
+    script = ("import signal, sys, time\n"
+              "def bye(*_):\n"
+              "    print('\\n'.join(f'bye {i}' for i in range(200)), flush=True)\n"
+              "    sys.exit(0)\n"
+              "signal.signal(signal.SIGTERM, bye)\n"
+              "print('up', flush=True)\n"
+              "time.sleep(60)\n")
+    out = SlowOutput()
+    monkeypatch.setattr(sys, "stdout", out)
+    talker = Child("talker", [sys.executable, "-c", script])
+    sup = Supervisor([talker], say=lambda s: None)
+    sup.start_all()
+    while not any(line.endswith(" up\n") for line in out.lines):  # its handler is in place
+        time.sleep(0.02)
+    sup.stop_all()
+    assert out.lines[-1].endswith("talker | bye 199\n")
