@@ -78,7 +78,10 @@ class Service:
         """Called once when the process stops, before the Zenoh session closes."""
 
     def status_extra(self) -> dict:
-        """Returns service-specific fields for the status reply (called on Zenoh's thread)."""
+        """Returns service-specific fields for the status reply.
+
+        Called on Zenoh's thread, and only once `setup` returned.
+        """
         return {}
 
 
@@ -166,6 +169,7 @@ class Context:
         self.counters = Counters()
         self.log = logging.getLogger(f"cbgo.{service.name}")
         self.zid = ""  # the Zenoh session id, set by run()
+        self.set_up = False  # once service.setup returned; status adds its fields from then
         self.rejects = RateLimited(self.log)
         self.stopping = threading.Event()
         self.exit_code = EXIT_OK
@@ -295,7 +299,13 @@ class Context:
         self._enqueue(lambda: None, False)  # wake the event loop
 
     def status(self) -> dict:
-        """Returns the reply of ``@ctl/<service>/status``."""
+        """Returns the reply of ``@ctl/<service>/status``.
+
+        Status is answered from the start, while the service still loads its models; its own
+        fields (`Service.status_extra`) join once its setup returned: before, what they read
+        may not exist yet (a status poll during intent's setup was answered with an error and
+        logged a traceback).
+        """
         return {
             "v": wire.SCHEMA_VERSION, "ts": time.time(), "name": self.service.name,
             "version": cbgo.__version__, "pid": os.getpid(), "host": socket.gethostname(),
@@ -304,7 +314,7 @@ class Context:
             "config": self.config, "counters": self.counters.as_dict(),
             "last_error": self.counters.last_error, "inputs": self.inputs,
             "outputs": self.outputs, "queryables": self.queryables,
-            **self.service.status_extra(),
+            **(self.service.status_extra() if self.set_up else {}),
         }
 
     # ---------------------------------------------------------------- internals
@@ -512,6 +522,7 @@ def _serve_forever(service_cls: type[Service], resolved: Resolved, log) -> int:
         ctx.control("status", lambda _q: ctx.status(), immediate=True)
         try:
             service.setup(ctx)
+            ctx.set_up = True
             if stop.is_set():
                 return EXIT_OK
             # What imports and setup created (torch, numpy, models: ~10^5 objects) lives as long

@@ -5,7 +5,8 @@ Rules:
   code runs in a forked copy of a process that has Zenoh open), each in its own session, so a
   Ctrl-C reaches only the supervisor, which then stops them in order: services first, in
   reverse pipeline order, then the router;
-- every child's stdout and stderr are merged into ours, each line prefixed with its name;
+- every child's stdout and stderr are merged into ours, each line prefixed with its name,
+  up to its last line: stopping waits for that (at most `DRAIN_S`);
 - a child that exits while we are not stopping is restarted after a back-off that doubles from
   0.5 s up to 30 s, and resets once the child has run for 30 s;
 - readiness is the liveliness token ``<prefix>/@alive/<name>``, watched through our own Zenoh

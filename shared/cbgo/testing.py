@@ -113,6 +113,7 @@ class FakeBus:
         self._clock_offset = 0.0
         self.ctx.control("status", lambda _q: self.ctx.status(), immediate=True)
         service.setup(self.ctx)
+        self.ctx.set_up = True
 
     @property
     def counters(self):

@@ -215,3 +215,25 @@ def test_after_a_stall_queued_messages_run_before_the_timer_that_fell_due():
     time.sleep(0.02)  # the stall: the timer is due, two frames are queued
     loop.run(ctx)
     assert order == ["frame 1", "frame 2", "timer"]
+
+
+class SlowStart(Service):
+    """A service whose status fields exist only at the end of its setup."""
+
+    name = "slow-start"
+
+    def setup(self, ctx):
+        self.seen_while_starting = ctx.status()  # a status poll that comes during setup
+        self.model = "m1"
+
+    def status_extra(self):
+        return {"model": self.model}
+
+
+def test_status_asked_during_setup_is_answered_without_the_services_own_fields():
+    bus = FakeBus(SlowStart(None))
+    early = bus.service.seen_while_starting
+    wire.validate(early, wire.SERVICE_STATUS)
+    assert "model" not in early
+    ok, status = bus.query("status", None)
+    assert ok and status["model"] == "m1"
