@@ -219,7 +219,7 @@ def _exit_without_finalizing(watching: threading.Thread, sup: Supervisor) -> NoR
     made to exit under Rust frames, and the whole process aborts ("FATAL: exception not
     rethrown", exit code 134) after a clean stop: 7 of 30 stops on a loaded machine did
     (`tests/stress/up_stop.sh 30 3`; 0 of 30 since), and closing the session first was not
-    enough (1 of 20). The children are stopped and nothing is left to finalize,
+    enough in a scratch run (1 of 20). The children are stopped and nothing is left to finalize,
     so the process flushes its output and exits at once. A session still waiting for an
     unreachable router is not waited for longer than `SESSION_CLOSE_S`.
     """
