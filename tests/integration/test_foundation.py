@@ -47,6 +47,17 @@ def test_cbgo_up_starts_the_router_reports_ready_and_stops_cleanly(stack):
     assert "router  stopped" in up.log()
 
 
+def test_cbgo_up_with_no_router_to_reach_still_stops_at_once(stack):
+    # nothing listens on the stack's endpoint: up's own session never connects
+    up = stack.spawn("up", [*CLI, "up", "--no-router", "--connect", stack.endpoint,
+                            "dry-robot"])
+    up.wait_for_line("waiting for the Zenoh network")  # its child is up, and waits too
+    code, seconds = stack.stop("up", signal.SIGINT)
+    assert code == 0, up.log()
+    assert seconds < 5.0, up.log()  # not held by the session that never opened
+    assert "dry-robot  received SIGTERM" in up.log() and "up | stopped" in up.log()
+
+
 def test_cbgo_up_restarts_a_router_killed_with_sigkill(stack):
     up = stack.spawn("up", [*CLI, "up", "--router-listen", stack.endpoint])
     stack.wait_alive(["router"])

@@ -197,8 +197,9 @@ def run(args: argparse.Namespace) -> int:
         fail(f"configuration error: {e}", 2)
     # The watcher's session waits for the router in its own thread, so that supervision
     # (restarting a router that died before we reached it) never waits on it.
-    watching = threading.Thread(target=_watch_tokens, args=(resolved, watcher, stop),
-                                daemon=True)
+    connected = threading.Event()
+    watching = threading.Thread(target=_watch_tokens,
+                                args=(resolved, watcher, stop, connected), daemon=True)
     watching.start()
     try:
         _supervise(sup, watcher, stop, args.ready_timeout)
@@ -207,10 +208,11 @@ def run(args: argparse.Namespace) -> int:
         sup.emit("up", "stopping", 0)
         sup.stop_all()
         sup.emit("up", "stopped", 0)
-    _exit_without_finalizing(watching, sup)
+    _exit_without_finalizing(watching, connected, sup)
 
 
-def _exit_without_finalizing(watching: threading.Thread, sup: Supervisor) -> NoReturn:
+def _exit_without_finalizing(watching: threading.Thread, connected: threading.Event,
+                             sup: Supervisor) -> NoReturn:
     """Exits 0 once the watcher's Zenoh session is closed, without finalizing the interpreter.
 
     Why: Zenoh works, and calls back into Python, on threads of its own, some of them still
@@ -220,21 +222,25 @@ def _exit_without_finalizing(watching: threading.Thread, sup: Supervisor) -> NoR
     rethrown", exit code 134) after a clean stop: 7 of 30 stops on a loaded machine did
     (`tests/stress/up_stop.sh 30 3`; 0 of 30 since), and closing the session first was not
     enough in a scratch run (1 of 20). The children are stopped and nothing is left to finalize,
-    so the process flushes its output and exits at once. A session still waiting for an
-    unreachable router is not waited for longer than `SESSION_CLOSE_S`.
+    so the process flushes its output and exits at once. A session that connected is given
+    `SESSION_CLOSE_S` to close (the router hears it go); one still waiting for an unreachable
+    router is not waited for.
     """
-    watching.join(SESSION_CLOSE_S)
-    if watching.is_alive():
-        sup.emit("up", f"the liveliness session did not close within {SESSION_CLOSE_S:g} s; "
-                 "exiting without it", 0)
+    if connected.is_set():
+        watching.join(SESSION_CLOSE_S)
+        if watching.is_alive():
+            sup.emit("up", f"the liveliness session did not close within {SESSION_CLOSE_S:g} "
+                     "s; exiting without it", 0)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)
 
 
-def _watch_tokens(options, watcher: AliveWatcher, stop: threading.Event) -> None:
+def _watch_tokens(options, watcher: AliveWatcher, stop: threading.Event,
+                  connected: threading.Event) -> None:
     keys = Keys(options.prefix)
     with open_session(options, "cbgo-up") as sess:
+        connected.set()
         sess.liveliness().declare_subscriber(
             keys.alive("*"), lambda s: _on_token(watcher, keys, s), history=True)
         stop.wait()
