@@ -736,7 +736,9 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
         start = w.origin if w.origin is not None else middle
         after = [v for v, _ in finals[i + 1:] if v.t_start - w.t_end <= NEIGHBOUR_S]
         before = [v for v, _ in finals[:i] if w.t_start - v.t_end <= NEIGHBOUR_S][-1:]
-        seen_after = end_t - w.t_end >= NEIGHBOUR_S  # whatever came, or unbiased
+        # known only where the recording lasts long enough to show a return, whether or not
+        # one came: keeping the short recordings that do show one would bias the share up
+        seen_after = end_t - w.t_end >= NEIGHBOUR_S
         roll = float(np.degrees(w.obs[-1, 3] / roll_scale))
         across = d[0] != 0 and (d[0] < 0) == (w.side == "right")
         out.append({"length_mm": length, "roll_deg": roll,
@@ -808,6 +810,12 @@ SHARE_HABITS = ("returned",)
 """Habits that are yes or no: printed and drawn as the share of swipes, not as percentiles."""
 
 
+def known_values(rows: list[dict], name: str) -> np.ndarray:
+    """Returns one habit's values over the swipes it is known for (NaN: unknown)."""
+    values = np.array([r[name] for r in rows], dtype=float)
+    return values[np.isfinite(values)]
+
+
 def print_realism(real: list[dict], simulated: list[dict]) -> dict:
     """Prints the habits side by side (median [10th, 90th percentile]); returns them.
 
@@ -820,8 +828,7 @@ def print_realism(real: list[dict], simulated: list[dict]) -> dict:
     for name in HABITS:
         cells = []
         for rows in (real, simulated):
-            values = np.array([r[name] for r in rows], dtype=float)
-            values = values[np.isfinite(values)]
+            values = known_values(rows, name)
             if name in SHARE_HABITS:
                 cells.append([float(values.mean()) if len(values) else np.nan,
                               float(len(values)), np.nan])
@@ -868,8 +875,7 @@ def plot_realism(real: list[dict], simulated: list[dict], out: Path) -> Path:
             ("simulated users", simulated, "#dd8452"))
     fig, axes = plt.subplots(3, 4, figsize=(14, 9))
     for ax, name in zip(axes.flat, HABITS, strict=True):
-        values = [np.array([r[name] for r in rows], dtype=float) for _, rows, _ in sets]
-        values = [v[np.isfinite(v)] for v in values]
+        values = [known_values(rows, name) for _, rows, _ in sets]
         ax.set_title(HABIT_WORDS[name], fontsize=9)
         if name in SHARE_HABITS:
             shares = [float(v.mean()) if len(v) else 0.0 for v in values]

@@ -147,8 +147,8 @@ def timed_transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndar
     for k, (start, change, seconds_long) in enumerate(zip(
             x_from, step, rng.uniform(*TRANSITION_S, len(step)), strict=True)):
         t = np.arange(1, int(np.ceil(seconds_long * TIMED_RATE_HZ))) / TIMED_RATE_HZ
-        now.append(start + min_jerk(t / seconds_long)[:, None] * change)
-        before.append(start + min_jerk((t - motion.WINDOW_S) / seconds_long)[:, None] * change)
+        now.append(_pose_at(t, start, change, seconds_long))
+        before.append(_pose_at(t - motion.WINDOW_S, start, change, seconds_long))
         which.append(np.full(len(t), k))
         through.append(t / seconds_long)
     return (np.concatenate(now), np.concatenate(before), np.concatenate(which),
@@ -177,12 +177,18 @@ def appearing_transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.
             found = rng.uniform(0.0, seconds_long)
             t = found + np.arange(int(np.ceil(motion.WINDOW_S * TIMED_RATE_HZ))) / TIMED_RATE_HZ
             t = t[t < seconds_long]
-            now.append(start + min_jerk(t / seconds_long)[:, None] * change)
+            now.append(_pose_at(t, start, change, seconds_long))
             first.append(np.repeat(now[-1][:1], len(t), axis=0))
             which.append(np.full(len(t), k))
     if not now:
         return np.zeros((0, F.N_FEATURES)), np.zeros((0, F.N_FEATURES)), np.zeros(0, dtype=int)
     return np.concatenate(now), np.concatenate(first), np.concatenate(which)
+
+
+def _pose_at(t: np.ndarray, start: np.ndarray, change: np.ndarray, seconds_long: float
+             ) -> np.ndarray:
+    """Returns (len(t), 57) features of a hand ``t`` seconds into a minimum-jerk change."""
+    return start + min_jerk(t / seconds_long)[:, None] * change
 
 
 def _start_and_step(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray
