@@ -51,7 +51,7 @@ class StyleRanges:
     rest_s: tuple[Interval, ...] = ((0.0, 0.3),)
     swipe_roll_deg: tuple[Interval, ...] = ((15.0, 60.0),)
     medial_roll_deg: tuple[Interval, ...] = ((30.0, 70.0),)
-    return_slowdown: tuple[Interval, ...] = ((0.8, 2.0),)
+    return_slowdown: tuple[Interval, ...] = ((0.6, 1.4),)
 
     def draw(self, rng: np.random.Generator, name: str) -> tuple[UserStyle, tuple[float, float]]:
         """Returns a user style and the (low, high) roll angles of its rotate strokes."""

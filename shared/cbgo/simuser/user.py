@@ -39,6 +39,12 @@ SWIPE_DIRECTIONS = {
 }
 
 
+# How far a return comes back, as a share of its swipe: log-normal, median and spread fitted to
+# the SHREC'17 train split's returns (`cbgo bench dynamic --realism DIR`: 0.98 [0.58, 1.42],
+# 10th and 90th percentiles). Real people stop short of where they started or overshoot it.
+RETURN_REACH = 0.98
+RETURN_REACH_LOG_SD = 0.33
+RETURN_REACH_RANGE = (0.4, 1.8)
 STROKE_BOX = (np.array([-190.0, 100.0, -150.0]), np.array([190.0, 470.0, 150.0]))
 
 
@@ -224,7 +230,12 @@ class SimulatedUser:
         builder.move_to(start + direction * length, seconds, "stroke", step.gesture, bow=bow,
                         roll_to=roll)
         builder.hold(0.15 / style.speed * rng.uniform(0.0, 1.0), "stroke", step.gesture)
-        builder.move_to(start, seconds * style.return_slowdown * rng.uniform(0.9, 1.3),
+        end = start + direction * length
+        reach = float(np.clip(np.exp(rng.normal(np.log(RETURN_REACH), RETURN_REACH_LOG_SD)),
+                              *RETURN_REACH_RANGE))
+        back = end - direction * length * reach
+        builder.move_to(_inside(back, back),
+                        seconds * reach * style.return_slowdown * rng.uniform(0.8, 1.1),
                         "return", roll_to=0.0)
 
     def _render(self, timeline: Timeline, user: str, episode: Episode, t0: float

