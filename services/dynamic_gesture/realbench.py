@@ -821,10 +821,11 @@ def print_realism(real: list[dict], simulated: list[dict]) -> dict:
 
     A yes/no habit (`SHARE_HABITS`) is given as its share of the swipes it is known for and
     their number, in the places of the median and the 10th percentile (its percentiles would
-    only say 0 or 1).
+    only say 0 or 1). Every other habit is followed by the number of swipes it is known for
+    (a ratio to a return or a preparation only where the swipe has one).
     """
     table = {}
-    print(f"\n{'swipe habit':<20}{'real (SHREC train)':>26}{'simulated':>26}")
+    print(f"\n{'swipe habit':<20}{'real (SHREC train)':>31}{'simulated':>31}")
     for name in HABITS:
         cells = []
         for rows in (real, simulated):
@@ -834,15 +835,16 @@ def print_realism(real: list[dict], simulated: list[dict]) -> dict:
                               float(len(values)), np.nan])
             else:
                 cells.append([float(np.median(values)), float(np.percentile(values, 10)),
-                              float(np.percentile(values, 90))] if len(values) else [np.nan] * 3)
+                              float(np.percentile(values, 90)), float(len(values))]
+                             if len(values) else [np.nan] * 3 + [0.0])
         table[name] = {"real": cells[0], "simulated": cells[1]}
         if name in SHARE_HABITS:
-            print(f"{name + ' (share)':<20}" + "".join(f"{m:>10.2f} of {n:<13.0f}"
+            print(f"{name + ' (share)':<20}" + "".join(f"{m:>10.2f} of {n:<18.0f}"
                                                         for m, n, _ in cells))
         else:
-            print(f"{name:<20}" + "".join(f"{m:>10.2f} [{lo:6.2f},{hi:7.2f}]"
-                                          for m, lo, hi in cells))
-    print(f"{'strokes':<20}{len(real):>26}{len(simulated):>26}")
+            print(f"{name:<20}" + "".join(f"{m:>10.2f} [{lo:6.2f},{hi:7.2f}] n {n:<3.0f}"
+                                          for m, lo, hi, n in cells))
+    print(f"{'strokes':<20}{len(real):>31}{len(simulated):>31}")
     return table
 
 

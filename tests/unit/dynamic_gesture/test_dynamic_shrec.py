@@ -323,7 +323,9 @@ def test_the_realism_table_gives_a_yes_or_no_habit_as_a_share_and_draws_the_habi
     table = realbench.print_realism(rows, same)
     assert table["returned"]["real"][:2] == [pytest.approx(2 / 3), 3.0]  # of the 3 known
     assert table["length_mm"]["real"][0] == 1.5 and table["length_mm"]["simulated"][0] == 2.0
-    assert "returned (share)" in capsys.readouterr().out
+    assert table["length_mm"]["real"][3] == 4 and table["length_mm"]["simulated"][3] == 2
+    out = capsys.readouterr().out
+    assert "returned (share)" in out and "n 4" in out
     path = realbench.plot_realism(rows, same, tmp_path / "figures")
     assert path == tmp_path / "figures" / "realism.png"
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
