@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from cbgo import wire
-from cbgo.simuser.scenario import load_scenario, parse_scenario
 from cbgo.simuser import user as user_module
 from cbgo.simuser.motion import TimelineBuilder
+from cbgo.simuser.scenario import load_scenario, parse_scenario
 from cbgo.simuser.user import SimulatedUser
 from cbgo.transform import default_to_base, leap_to_base
 
@@ -56,7 +56,8 @@ def test_returns_come_back_a_varying_share_of_their_swipe_as_real_people_do(monk
     user = SimulatedUser(scenario, 60.0)
     user.timeline(scenario.episodes[0], scenario.users["u"], np.random.default_rng(3))
     reaches = np.array([(swipe[2][0] - back[2][0]) / (swipe[2][0] - swipe[1][0])
-                        for swipe, back in zip(moves, moves[1:]) if swipe[0] == "stroke"])
+                        for swipe, back in zip(moves, moves[1:], strict=False)
+                        if swipe[0] == "stroke"])
     assert len(reaches) == 60
     low, high = user_module.RETURN_REACH_RANGE
     assert np.all((reaches >= low - 1e-9) & (reaches <= high + 1e-9))
