@@ -878,7 +878,11 @@ def plot_realism(real: list[dict], simulated: list[dict], out: Path) -> Path:
     fig, axes = plt.subplots(3, 4, figsize=(14, 9))
     for ax, name in zip(axes.flat, HABITS, strict=True):
         values = [known_values(rows, name) for _, rows, _ in sets]
-        ax.set_title(HABIT_WORDS[name], fontsize=9)
+        counts = [len(v) for v in values]
+        partial = name not in SHARE_HABITS and counts != [len(real), len(simulated)]
+        # a habit known for some swipes only (a return, a preparation) says for how many
+        ax.set_title(HABIT_WORDS[name] + (f" (of {counts[0]} / {counts[1]})" if partial else ""),
+                     fontsize=9)
         if name in SHARE_HABITS:
             shares = [float(v.mean()) if len(v) else 0.0 for v in values]
             ax.bar([0, 1], shares, color=[c for _, _, c in sets])

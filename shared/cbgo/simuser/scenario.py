@@ -66,7 +66,8 @@ class UserStyle:
     rest_s: float = 0.12        # longest rest before a stroke (drawn from 0..rest_s)
     swipe_roll_deg: float = 45.0  # spread (SD) of the palm roll during a horizontal swipe
     medial_roll_deg: float = 50.0  # mean palm roll (thumb side down) swiping across the body
-    return_slowdown: float = 1.3  # the return takes this much longer than the stroke
+    return_slowdown: float = 1.0  # the return's duration over the stroke's, per share of its
+    # length it comes back (real returns are about as fast as their swipe: 0.91 of its speed)
 
     def __post_init__(self):
         if self.side not in ("left", "right"):
