@@ -227,10 +227,9 @@ class SimulatedUser:
         roll = np.radians(rng.normal(-style.medial_roll_deg if medial else 0.0,
                                      style.swipe_roll_deg * (1.0 if horizontal else 0.5)))
         seconds = 0.45 / style.speed * rng.uniform(0.9, 1.1)
-        builder.move_to(start + direction * length, seconds, "stroke", step.gesture, bow=bow,
-                        roll_to=roll)
-        builder.hold(0.15 / style.speed * rng.uniform(0.0, 1.0), "stroke", step.gesture)
         end = start + direction * length
+        builder.move_to(end, seconds, "stroke", step.gesture, bow=bow, roll_to=roll)
+        builder.hold(0.15 / style.speed * rng.uniform(0.0, 1.0), "stroke", step.gesture)
         reach = float(np.clip(np.exp(rng.normal(np.log(RETURN_REACH), RETURN_REACH_LOG_SD)),
                               *RETURN_REACH_RANGE))
         back = end - direction * length * reach

@@ -41,7 +41,6 @@ def test_a_pointing_hand_aims_its_index_finger_at_the_gaze_target(side, target):
     assert np.median(error) < 0.07
 
 
-
 def test_returns_come_back_a_varying_share_of_their_swipe_as_real_people_do(monkeypatch):
     moves = []  # (phase, from, to) of every move the simulated user makes
     move_to = TimelineBuilder.move_to
