@@ -754,6 +754,7 @@ class ReturnFilter:
         self.within_s, self.cos_max, self.faster, self.sure = within_s, cos_max, faster, sure
         self.farther = farther
         self.last: dict[int, _Gesture] = {}
+        self.running: dict[int, tuple[int, float]] = {}  # hand → (stroke, its highest p so far)
         self.returns = 0
 
     def is_return(self, window: Window) -> bool:
@@ -777,33 +778,43 @@ class ReturnFilter:
         return not prepared
 
     def observe(self, window: Window, p_gesture: float) -> None:
-        """Records a reported final window and its top gesture's probability (if a gesture)."""
+        """Records a reported window's top gesture probability (0 if it was no gesture).
+
+        A stroke is recorded as a gesture when it ends, with the highest of these over its
+        windows: a swipe reported mid-stroke whose end reads ``none`` was still reported.
+        """
+        stroke, seen = self.running.get(window.hand_id, (window.stroke, 0.0))
+        seen = max(p_gesture, seen if stroke == window.stroke else 0.0)
         if not window.final:
+            self.running[window.hand_id] = (window.stroke, seen)
             return
+        self.running.pop(window.hand_id, None)
         delta = window.obs[-1] - window.obs[0]
-        if p_gesture > 0.0 and float(np.linalg.norm(delta)) > 1e-6:
-            self.last[window.hand_id] = _Gesture(window.t_end, delta, window.peak_speed,
-                                                 p_gesture)
+        if seen > 0.0 and float(np.linalg.norm(delta)) > 1e-6:
+            self.last[window.hand_id] = _Gesture(window.t_end, delta, window.peak_speed, seen)
 
 
 def reported(windows, returns: ReturnFilter, classify):
     """Yields (window, probabilities) of the windows a service reports, as it decides.
 
     A return (`ReturnFilter.is_return`) is skipped; every other window is classified
-    (`classify(window)` → probabilities, ``none`` last). A final window is always reported and
-    recorded as a gesture if its most probable gesture has p ≥ `MIGHT_P` or is more probable
-    than ``none`` (what might have been a gesture is followed by what might be its return). A
+    (`classify(window)` → probabilities, ``none`` last). A final window is always reported. A
     running stroke's window is reported only when its top gesture has p ≥ `PARTIAL_P`, or
     `NEW_HAND_P` while it is younger than `NEW_HAND_WAIT_S` in a stroke under way when its
-    hand appeared (`NEW_HAND_S`).
+    hand appeared (`NEW_HAND_S`). A stroke is recorded as a gesture, whose reversal is its
+    return, if its final window's most probable gesture has p ≥ `MIGHT_P` or is more probable
+    than ``none`` (what might have been a gesture is followed by what might be its return), or
+    if one of its running windows was reported: a consumer was told of it.
     """
     for window in windows:
         if returns.is_return(window):
             continue
         probs = classify(window)
         top = float(np.max(probs[:-1]))
-        returns.observe(window, top if top >= MIGHT_P or top > probs[-1] else 0.0)
-        if window.final or top >= partial_p(window):
+        might_be = top >= MIGHT_P or top > probs[-1]
+        published = window.final or top >= partial_p(window)
+        returns.observe(window, top if (might_be if window.final else published) else 0.0)
+        if published:
             yield window, probs
 
 

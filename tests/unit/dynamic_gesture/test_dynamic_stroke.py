@@ -93,6 +93,24 @@ def test_the_return_after_an_unsure_gesture_is_not_reported_even_when_it_looks_s
     assert {w.stroke for w in kept} == {1}
 
 
+def test_the_return_after_a_gesture_reported_only_mid_stroke_is_not_reported(synth):
+    # A real swipe often reads surest mid-stroke and "none" at its end (the end of a swipe
+    # looks like the end of a return); the consumer was told of the swipe all the same.
+    traj = synth.trajectory([REST, SWIPE_UP, ("hold", 0.4), ("move", 0.9, (0, -160, 0)),
+                             ("hold", 0.5)])
+    windows = synth.feed(Segmenter(), traj)
+    assert len([w for w in windows if w.stroke == 1 and not w.final]) > 1
+
+    def swipe_sure_until_its_end(w):
+        return (0.1 if w.final else stroke.PARTIAL_P) if w.stroke == 1 else 0.9
+
+    kept = reported_windows(windows, classify=swipe_sure_until_its_end)
+    assert {w.stroke for w in kept} == {1}
+    # Mid-stroke windows too unsure to be reported do not make the stroke a gesture.
+    kept = reported_windows(windows, classify=lambda w: 0.1 if w.stroke == 1 else 0.9)
+    assert {w.stroke for w in kept} == {1, 2}
+
+
 def test_a_move_that_reverses_a_non_gesture_is_reported(synth):
     # A slow preparation downwards (classified "none"), then the swipe up.
     traj = synth.trajectory([REST, ("move", 1.0, (0, -80, 0)), ("hold", 0.2), SWIPE_UP,
