@@ -78,6 +78,8 @@ RULES = ("all", "finals", "first")
 first reported gesture (what a consumer that acts at once sees)."""
 SUFFIXES = {"all": "", "finals": "_finals", "first": "_first"}  # of the figures' keys
 STREAMS_PER_PERSON = 2  # continuous streams of each held-out person (`realbench.person_streams`)
+# Two streams per person give about ten false triggers over 20 people: enough to see a rule
+# move them a lot, too few to tell 0.8/min from 1.2/min (`--streams 6` plays three times as many).
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -95,6 +97,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the SHREC'17 datasetShrec folder: add its train split's people")
     parser.add_argument("--folds", type=int, default=0,
                         help="also score the real people leave-group-out in N groups [0: no]")
+    parser.add_argument("--streams", type=int, default=STREAMS_PER_PERSON, metavar="N",
+                        help="with --folds: continuous streams played per held-out person "
+                             f"[{STREAMS_PER_PERSON}]")
     parser.add_argument("--misses", action="store_true",
                         help="with --folds: list every held-out swipe recording answered wrong, "
                              "with how far its palm moved")
@@ -197,12 +202,13 @@ def trial_answers(classifier: Classifier, windows: list, return_s: float) -> dic
 
 
 def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: int,
-                   return_s: float, log=print) -> dict:
+                   return_s: float, log=print, streams_per_person: int = STREAMS_PER_PERSON
+                   ) -> dict:
     """Scores each group of real people with a library learned without them.
 
     Each trial (recording) is answered twice: by every reported window, and by the final
     windows only. The swipes are answered again mirrored, as a left hand makes them (the
-    recordings are all of right hands). Each held-out person also plays `STREAMS_PER_PERSON`
+    recordings are all of right hands). Each held-out person also plays `streams_per_person`
     continuous streams of their recordings, the hand never leaving, through the service's
     logic offline (`realbench.replay_stream`).
     """
@@ -245,11 +251,12 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
             own = [seq for seq, _, _ in recordings if seq.person == person]
             streams += [realbench.replay_stream(classifier, frames,
                                                 *realbench.split_spans(spans), config)
-                        for frames, spans in realbench.person_streams(own, STREAMS_PER_PERSON,
+                        for frames, spans in realbench.person_streams(own, streams_per_person,
                                                                       rng)]
         log(f"  fold {k + 1}/{folds}: people {sorted(held)} scored")
     out = {"folds": folds, "people": people, "names": names, "other_trials": other,
-           "streams": realbench.stream_totals(streams), "misses": misses}
+           "streams": realbench.stream_totals(streams), "streams_per_person": streams_per_person,
+           "misses": misses}
     for rule in RULES:
         c = confusion[rule]
         recall = {n: float(c[i, i] / c[i].sum()) for i, n in enumerate(names[:4]) if c[i].sum()}
@@ -295,7 +302,8 @@ def mirrored_window(window):
 
 
 def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
-          real: Path | None = None, folds: int = 0, log=print
+          real: Path | None = None, folds: int = 0, log=print,
+          streams_per_person: int = STREAMS_PER_PERSON
           ) -> tuple[list[Template], NeuralCalibration, dict]:
     """Runs the whole training; returns templates, calibration and a summary."""
     t0 = time.perf_counter()
@@ -317,7 +325,7 @@ def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
                      "real": "shrec17 train split" if recordings else None}
     if folds and recordings:
         summary["leave_people_out"] = cross_validate(sim_train, sim_calib, recordings, folds,
-                                                     return_s, log)
+                                                     return_s, log, streams_per_person)
     real_people = shrec.people_data(recordings, return_s)
     classifier = fit(sim_train, sim_calib, real_people)
     summary["demonstrations"] = {name: len(w) for name, w in
@@ -360,7 +368,8 @@ def print_leave_people_out(block: dict, misses: bool = False) -> None:
                   f"{m['reach_mm']} mm, {m['along_mm']} its way, {m['against_mm']} against")
     s = block.get("streams")
     if s and s["strokes"]:
-        print(f"\ncontinuous streams of the held-out people ({STREAMS_PER_PERSON} each, 10 "
+        each = block.get("streams_per_person", STREAMS_PER_PERSON)
+        print(f"\ncontinuous streams of the held-out people ({each} each, 10 "
               f"recordings, hand never leaves; replayed offline): "
               + realbench.describe_streams(s))
 
@@ -369,7 +378,8 @@ def run(args: argparse.Namespace) -> int:
     """Trains, prints the figures and writes the library."""
     out = args.out or trained_path(data_dir())
     templates, calibration, summary = train(args.users, args.calib_users, args.reps, args.seed,
-                                            args.jobs, args.real, args.folds)
+                                            args.jobs, args.real, args.folds,
+                                            streams_per_person=args.streams)
     config = SegmenterConfig()
     observation = {"rate_hz": RATE_HZ, "dims": ["x", "y", "z", "k*roll"],
                    "roll_scale_mm_per_rad": config.roll_scale_mm_per_rad}

@@ -168,7 +168,8 @@ def test_leave_people_out_scores_each_person_with_a_library_learned_without_them
     (tmp_path / "test_gestures.txt").write_text("")
     recordings = shrec.sequence_windows(shrec.read_split(tmp_path, "train"))
     sim = [simdata.run_user(7, simdata.TRAIN, reps=1)]
-    block = train.cross_validate(sim, sim, recordings, 2, 1.5, log=lambda *_: None)
+    block = train.cross_validate(sim, sim, recordings, 2, 1.5, log=lambda *_: None,
+                                 streams_per_person=3)
     assert block["people"] == [2, 3, 4, 5]
     confusion = np.asarray(block["confusion"])
     assert confusion.sum() == 4 and confusion[:4].sum() == 4  # every recording scored once
@@ -178,8 +179,8 @@ def test_leave_people_out_scores_each_person_with_a_library_learned_without_them
     assert finals.sum() == 4 and set(block["recall_finals"]) == held
     first = np.asarray(block["confusion_first"])  # answered by the first reported gesture
     assert first.sum() == 4 and set(block["recall_first"]) == held
-    # each held-out person's one swipe, played as a stream STREAMS_PER_PERSON times
-    assert block["streams"]["strokes"] == 4 * train.STREAMS_PER_PERSON
+    # each held-out person's one swipe, played as a stream as many times as asked (`--streams`)
+    assert block["streams"]["strokes"] == 4 * 3 and block["streams_per_person"] == 3
     # the same swipes mirrored into left hands score as the right hands they mirror
     assert block["left_hand_balanced_accuracy"] == pytest.approx(block["balanced_accuracy"])
     assert block["left_hand_balanced_accuracy_finals"] == pytest.approx(
