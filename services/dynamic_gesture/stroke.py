@@ -811,9 +811,10 @@ def reported(windows, returns: ReturnFilter, classify):
             continue
         probs = classify(window)
         top = float(np.max(probs[:-1]))
-        might_be = top >= MIGHT_P or top > probs[-1]
         published = window.final or top >= partial_p(window)
-        returns.observe(window, top if (might_be if window.final else published) else 0.0)
+        # a final window that might be a gesture, or any published one, makes its stroke one
+        gesture = (top >= MIGHT_P or top > probs[-1]) if window.final else published
+        returns.observe(window, top if gesture else 0.0)
         if published:
             yield window, probs
 
