@@ -17,8 +17,8 @@ Guinevere set, ~115 Hz; a folder of person folders of ``NAME-TAKE.json``). Print
   reported for them is a false trigger.
 - **Continuous streams**: per person, several recordings one after the other without the
   hand leaving (a slow move, at least 0.6 s, from the end of one to the start of the next,
-  then a 0.4 s hold; SHREC'17 from its joints, `stream_joints`, LeapJS from its hands,
-  `trials_stream`).
+  then a 0.4 s hold, the hand turning rigidly; SHREC'17 from its joints, `stream_joints`,
+  LeapJS from its hands, `trials_stream`).
   Recall of the swipes, and false triggers: a stroke reported as a gesture (p ≥ 0.5) that
   overlaps no swipe of that name, counted once however many of its windows were reported.
   Those that overlap one of the other gestures (grab, tap, thumbs...) are counted apart; the
@@ -177,14 +177,39 @@ def stream_joints(sequences: list[shrec.Sequence]) -> tuple[np.ndarray, list[tup
         if parts:
             a, b = shrec.to_hands(np.stack([parts[-1][-1], joints[0]]))
             n = int(junction_s(a, b) * shrec.RATE_HZ)
-            s = min_jerk(np.linspace(0, 1, n))[:, None, None]
-            parts.append(parts[-1][-1] + s * (joints[0] - parts[-1][-1]))
+            parts.append(turned_joints(parts[-1][-1], joints[0], a, b,
+                                       min_jerk(np.linspace(0, 1, n))))
             parts.append(np.repeat(joints[:1], int(HOLD_S * shrec.RATE_HZ), axis=0))
             t += (len(parts[-1]) + len(parts[-2])) / shrec.RATE_HZ
         parts.append(joints)
         spans.append((seq.name, t, t + len(joints) / shrec.RATE_HZ))
         t += len(joints) / shrec.RATE_HZ
     return np.concatenate(parts), spans
+
+
+def turned_joints(a: np.ndarray, b: np.ndarray, hand_a: dict, hand_b: dict,
+                  shares: np.ndarray) -> np.ndarray:
+    """Returns skeleton `a` (joints, 3) taken each of `shares` of the way to skeleton `b`.
+
+    As `blend_hands` does for hand frames (`hand_a` and `hand_b` are the two skeletons' hands):
+    the palm moves in a straight line, the hand turns rigidly about it from `a`'s palm frame
+    to `b`'s, and the joints change linearly in the palm's frame. Joints blended in straight
+    lines would squeeze a hand turned over through its palm, its normal flipping in a frame
+    or two: a fast roll, read as a rotate that no real hand made.
+    """
+    def basis(hand: dict) -> np.ndarray:
+        return palm_basis(np, np.asarray(hand["direction"], float),
+                          np.asarray(hand["palm_normal"], float))
+
+    palm_a, palm_b = a[shrec.PALM_JOINT], b[shrec.PALM_JOINT]  # the skeletons' own units
+    basis_a, basis_b = basis(hand_a), basis(hand_b)
+    local_a, local_b = (a - palm_a) @ basis_a.T, (b - palm_b) @ basis_b.T
+    turn = basis_b.T @ basis_a
+    out = []
+    for s in np.asarray(shares, dtype=float):
+        turned = (partial_rotation(turn, s) @ basis_a.T).T
+        out.append(palm_a + s * (palm_b - palm_a) + ((1 - s) * local_a + s * local_b) @ turned)
+    return np.stack(out) if out else np.empty((0, *a.shape))
 
 
 class _Player:

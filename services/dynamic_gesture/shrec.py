@@ -57,6 +57,7 @@ GESTURES = {1: "grab", 2: "tap", 3: "expand", 4: "pinch", 5: "rotation_cw", 6: "
             7: "swipe_right", 8: "swipe_left", 9: "swipe_up", 10: "swipe_down", 11: "swipe_x",
             12: "swipe_plus", 13: "swipe_v", 14: "shake"}
 SWIPES = {7: "swipe_right", 8: "swipe_left", 9: "swipe_up", 10: "swipe_down"}
+PALM_JOINT = 1  # joint 0 is the wrist, 1 the palm (the module docstring's "Joints")
 FINGER_JOINTS = [(2, 3, 4, 5), (6, 7, 8, 9), (10, 11, 12, 13), (14, 15, 16, 17), (18, 19, 20, 21)]
 BONE_WIDTH_MM = (20.0, 18.0, 17.0, 16.0, 15.0)
 
@@ -146,7 +147,7 @@ def read_split(root: Path, split: str = "train", gestures=None) -> list[Sequence
 
 def median_palm(sequences: list[Sequence]) -> np.ndarray:
     """Returns the median palm position (mm, world frame) over every frame of the sequences."""
-    return np.median(np.concatenate([s.joints()[:, 1] * 1000.0 for s in sequences]), axis=0)
+    return np.median(np.concatenate([s.joints()[:, PALM_JOINT] * 1000.0 for s in sequences]), axis=0)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -181,7 +182,7 @@ def to_hands(joints_m: np.ndarray, offset_mm=DEFAULT_OFFSET_MM, side: str = "rig
     normal = _unit(normal - (normal * direction).sum(-1, keepdims=True) * direction)
     if side == "left":
         normal = -normal
-    velocity = np.gradient(j[:, 1], 1.0 / RATE_HZ, axis=0) if len(j) > 1 else np.zeros((1, 3))
+    velocity = np.gradient(j[:, PALM_JOINT], 1.0 / RATE_HZ, axis=0) if len(j) > 1 else np.zeros((1, 3))
     grab = _grab(j)
     pinch = pinch_strength(j[:, [5, 9, 13, 17, 21]], 1.0)
     width = np.linalg.norm(j[:, 6] - j[:, 18], axis=-1) * 1.25
@@ -198,7 +199,7 @@ def to_hands(joints_m: np.ndarray, offset_mm=DEFAULT_OFFSET_MM, side: str = "rig
                 for b, btype in enumerate(BONE_TYPES)]})
         hands.append({
             "id": hand_id, "side": side, "confidence": 1.0,
-            "palm_position": j[i, 1].tolist(), "palm_velocity": velocity[i].tolist(),
+            "palm_position": j[i, PALM_JOINT].tolist(), "palm_velocity": velocity[i].tolist(),
             "palm_normal": normal[i].tolist(), "direction": direction[i].tolist(),
             "wrist_position": j[i, 0].tolist(), "palm_width": float(width[i]),
             "grab_strength": float(grab[i]), "pinch_strength": float(pinch[i]),

@@ -681,6 +681,12 @@ REVERSE_COS_MAX = -0.2
 # (`cbgo train dynamic --real DIR --folds 4`: unchanged there, gap 0.5 s cost a final window).
 RETURNED_SHARE = 0.7
 RETURN_GAP_S = 0.3
+# A gesture the hand slowed in mid-way is two strokes. The second one, a gesture too, that starts
+# within CONTINUE_GAP_S of the first one's end and goes the same way (cosine ≥ CONTINUE_COS,
+# within 60°), carries it on: the return comes back over both (SHREC'17 train split, held-out
+# people's streams: a swipe_up made as 81 + 44 mm, its 140 mm return reported as a swipe_down).
+CONTINUE_GAP_S = 0.3
+CONTINUE_COS = 0.5
 ROLL_BACK = 2.0  # a turn after a move is that move's roll coming back up to this many times it
 
 
@@ -695,11 +701,8 @@ def reverses(delta: np.ndarray, previous: np.ndarray, cos_max: float = REVERSE_C
     rotate); a move after a turn moves where the turn did not, so it returns nothing (a swipe
     made soon after a rotate whose palm rolls back is a swipe).
     """
-    def cos(a: np.ndarray, b: np.ndarray) -> float:
-        return float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9)
-
     spatial = min(np.linalg.norm(delta[:3]), np.linalg.norm(previous[:3])) >= REVERSE_MIN_MM
-    if spatial and cos(delta[:3], previous[:3]) < cos_max:
+    if spatial and _cos(delta[:3], previous[:3]) < cos_max:
         return True
     if _turns(delta) == _turns(previous):
         same_kind = True
@@ -707,7 +710,23 @@ def reverses(delta: np.ndarray, previous: np.ndarray, cos_max: float = REVERSE_C
         same_kind = abs(float(delta[3])) <= ROLL_BACK * abs(float(previous[3]))
     else:
         same_kind = False
-    return same_kind and cos(delta, previous) < cos_max
+    return same_kind and _cos(delta, previous) < cos_max
+
+
+def continues(delta: np.ndarray, previous: np.ndarray) -> bool:
+    """Whether displacement `delta` goes on the way `previous` went (`CONTINUE_COS`).
+
+    Both must be moves, compared in space, or both turns, compared with the roll included.
+    """
+    if _turns(delta) != _turns(previous):
+        return False
+    if _turns(delta):
+        return _cos(delta, previous) >= CONTINUE_COS
+    return _cos(delta[:3], previous[:3]) >= CONTINUE_COS
+
+
+def _cos(a: np.ndarray, b: np.ndarray) -> float:
+    return float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9)
 
 
 def _turns(delta: np.ndarray) -> bool:
@@ -734,7 +753,8 @@ class ReturnFilter:
     the hand leaving is always a return: it has neither speed nor length to judge. A stroke
     reversing a non-gesture (a preparation classified ``none``) is always reported. A gesture
     has one return: once one has come back `RETURNED_SHARE` of the way, only a stroke starting
-    within `RETURN_GAP_S` of its end is still that return.
+    within `RETURN_GAP_S` of its end is still that return. A gesture made in two strokes (the
+    hand slowed mid-way) is one gesture, whose return comes back over both (`observe`).
 
     Args:
         within_s: how soon after a gesture's end a reversing stroke counts as its return
@@ -781,7 +801,9 @@ class ReturnFilter:
         """Records a reported window's top gesture probability (0 if it was no gesture).
 
         A stroke is recorded as a gesture when it ends, with the highest of these over its
-        windows: a swipe reported mid-stroke whose end reads ``none`` was still reported.
+        windows: a swipe reported mid-stroke whose end reads ``none`` was still reported. A
+        gesture stroke that carries on the hand's last gesture (`continues`, within
+        `CONTINUE_GAP_S`, before any return) extends it instead.
         """
         stroke, seen = self.running.get(window.hand_id, (window.stroke, 0.0))
         seen = max(p_gesture, seen if stroke == window.stroke else 0.0)
@@ -790,7 +812,17 @@ class ReturnFilter:
             return
         self.running.pop(window.hand_id, None)
         delta = window.obs[-1] - window.obs[0]
-        if seen > 0.0 and float(np.linalg.norm(delta)) > 1e-6:
+        if seen <= 0.0 or float(np.linalg.norm(delta)) <= 1e-6:
+            return
+        last = self.last.get(window.hand_id)
+        carries_on = (last is not None and last.returned_at == math.inf
+                      and window.t_start - last.t_end <= CONTINUE_GAP_S
+                      and continues(delta, last.delta))
+        if carries_on:  # one gesture in two strokes: its return comes back over both
+            self.last[window.hand_id] = _Gesture(window.t_end, last.delta + delta,
+                                                 max(last.peak_speed, window.peak_speed),
+                                                 max(last.p, seen))
+        else:
             self.last[window.hand_id] = _Gesture(window.t_end, delta, window.peak_speed, seen)
 
 

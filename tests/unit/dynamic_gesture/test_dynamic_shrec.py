@@ -99,6 +99,26 @@ def test_a_continuous_stream_keeps_the_hand_in_view_between_recordings(dataset):
 
 
 
+def test_between_recordings_a_skeleton_turned_over_turns_rigidly_about_its_palm():
+    # Palm towards the camera, then turned about its direction (palm away) and moved 50 mm.
+    a = upright_hand()
+    palm = a[shrec.PALM_JOINT]
+    axis = (a[10] - a[0]) / np.linalg.norm(a[10] - a[0])  # the hand's direction
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    flip = np.eye(3) + 2 * k @ k  # 180° about the direction
+    b = (a - palm) @ flip.T + palm + [0.05, 0.0, 0.0]
+    hand_a, hand_b = shrec.to_hands(np.stack([a, b]))
+    shares = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
+    turned = realbench.turned_joints(a, b, hand_a, hand_b, shares)
+    assert np.allclose(turned[0], a) and np.allclose(turned[-1], b)
+    hands = shrec.to_hands(turned)
+    for hand, turned_deg in zip(hands, 180 * shares, strict=True):
+        cos = np.dot(hand["palm_normal"], hand_a["palm_normal"])
+        assert np.degrees(np.arccos(np.clip(cos, -1, 1))) == pytest.approx(turned_deg, abs=1e-3)
+    size = [np.linalg.norm(j - j[shrec.PALM_JOINT], axis=1) for j in turned]
+    assert np.allclose(size, size[0])  # not squeezed through its palm on the way
+
+
 def test_between_recordings_the_hand_moves_and_turns_slowly():
     def hand(x, normal):
         return {"palm_position": [x, 200.0, 0.0], "palm_normal": normal}

@@ -111,6 +111,23 @@ def test_the_return_after_a_gesture_reported_only_mid_stroke_is_not_reported(syn
     assert {w.stroke for w in kept} == {1, 2}
 
 
+def test_a_swipe_the_hand_slowed_in_is_one_gesture_whose_return_comes_back_over_both(synth):
+    # Up 100 mm, a slowing, on up 60 mm (two strokes), then back down 150 mm: the return of
+    # the whole swipe, not a swipe down "twice as far" as the second stroke.
+    traj = synth.trajectory([REST, ("move", 0.35, (0, 100, 0)), ("move", 0.3, (0, 60, 0)),
+                             ("hold", 0.3), ("move", 0.6, (0, -150, 0)), ("hold", 0.5)])
+    windows = synth.feed(Segmenter(), traj)
+    ups = [w for w in finals(windows) if w.obs[-1, 1] > 0]
+    assert len(ups) == 2 and ups[1].t_start - ups[0].t_end <= stroke.CONTINUE_GAP_S
+    back = max(w.stroke for w in windows)
+    kept = reported_windows(windows, classify=lambda w: 0.9)
+    assert back not in {w.stroke for w in kept}
+    # Had the first stroke been no gesture, the second alone is the gesture it reverses.
+    kept = reported_windows(windows, classify=lambda w: 0.1 if w.stroke == ups[0].stroke
+                            else 0.9)
+    assert back in {w.stroke for w in kept}
+
+
 def test_a_move_that_reverses_a_non_gesture_is_reported(synth):
     # A slow preparation downwards (classified "none"), then the swipe up.
     traj = synth.trajectory([REST, ("move", 1.0, (0, -80, 0)), ("hold", 0.2), SWIPE_UP,
