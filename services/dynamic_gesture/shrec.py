@@ -147,7 +147,8 @@ def read_split(root: Path, split: str = "train", gestures=None) -> list[Sequence
 
 def median_palm(sequences: list[Sequence]) -> np.ndarray:
     """Returns the median palm position (mm, world frame) over every frame of the sequences."""
-    return np.median(np.concatenate([s.joints()[:, PALM_JOINT] * 1000.0 for s in sequences]), axis=0)
+    palms = [s.joints()[:, PALM_JOINT] * 1000.0 for s in sequences]
+    return np.median(np.concatenate(palms), axis=0)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -182,7 +183,8 @@ def to_hands(joints_m: np.ndarray, offset_mm=DEFAULT_OFFSET_MM, side: str = "rig
     normal = _unit(normal - (normal * direction).sum(-1, keepdims=True) * direction)
     if side == "left":
         normal = -normal
-    velocity = np.gradient(j[:, PALM_JOINT], 1.0 / RATE_HZ, axis=0) if len(j) > 1 else np.zeros((1, 3))
+    palm = j[:, PALM_JOINT]
+    velocity = np.gradient(palm, 1.0 / RATE_HZ, axis=0) if len(j) > 1 else np.zeros((1, 3))
     grab = _grab(j)
     pinch = pinch_strength(j[:, [5, 9, 13, 17, 21]], 1.0)
     width = np.linalg.norm(j[:, 6] - j[:, 18], axis=-1) * 1.25
