@@ -99,7 +99,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also score the real people leave-group-out in N groups [0: no]")
     parser.add_argument("--streams", type=int, default=STREAMS_PER_PERSON, metavar="N",
                         help="with --folds: continuous streams played per held-out person "
-                             f"[{STREAMS_PER_PERSON}]")
+                             f"[{STREAMS_PER_PERSON}]; the false-trigger rate of a few is a "
+                             "small sample that moves by half between draws: 24 gives a "
+                             "steadier figure (about 3 min more)")
     parser.add_argument("--misses", action="store_true",
                         help="with --folds: list every held-out swipe recording answered wrong, "
                              "with how far its palm moved")
