@@ -191,25 +191,44 @@ def turned_joints(a: np.ndarray, b: np.ndarray, hand_a: dict, hand_b: dict,
                   shares: np.ndarray) -> np.ndarray:
     """Returns skeleton `a` (joints, 3) taken each of `shares` of the way to skeleton `b`.
 
-    As `blend_hands` does for hand frames (`hand_a` and `hand_b` are the two skeletons' hands):
-    the palm moves in a straight line, the hand turns rigidly about it from `a`'s palm frame
-    to `b`'s, and the joints change linearly in the palm's frame. Joints blended in straight
-    lines would squeeze a hand turned over through its palm, its normal flipping in a frame
-    or two: a fast roll, read as a rotate that no real hand made.
+    As `blend_hands` does for hand frames (`hand_a` and `hand_b` are the two skeletons' hands;
+    `turned_hand`): joints blended in straight lines would squeeze a hand turned over through
+    its palm, its normal flipping in a frame or two: a fast roll, read as a rotate that no
+    real hand made.
     """
-    def basis(hand: dict) -> np.ndarray:
-        return palm_basis(np, np.asarray(hand["direction"], float),
-                          np.asarray(hand["palm_normal"], float))
-
-    palm_a, palm_b = a[shrec.PALM_JOINT], b[shrec.PALM_JOINT]  # the skeletons' own units
-    basis_a, basis_b = basis(hand_a), basis(hand_b)
-    local_a, local_b = (a - palm_a) @ basis_a.T, (b - palm_b) @ basis_b.T
-    turn = basis_b.T @ basis_a
-    out = []
-    for s in np.asarray(shares, dtype=float):
-        turned = (partial_rotation(turn, s) @ basis_a.T).T
-        out.append(palm_a + s * (palm_b - palm_a) + ((1 - s) * local_a + s * local_b) @ turned)
+    palms = a[shrec.PALM_JOINT], b[shrec.PALM_JOINT]  # the skeletons' own units
+    out = [turned_hand(palms, (_basis(hand_a), _basis(hand_b)), float(s))[0](a, b)
+           for s in np.asarray(shares, dtype=float)]
     return np.stack(out) if out else np.empty((0, *a.shape))
+
+
+def _basis(hand: dict) -> np.ndarray:
+    return palm_basis(np, np.asarray(hand["direction"], float),
+                      np.asarray(hand["palm_normal"], float))
+
+
+def turned_hand(palms: tuple, bases: tuple, s: float):
+    """Returns how points of hand a and hand b lie a fraction `s` of the way from a to b.
+
+    The palm moves in a straight line from ``palms[0]`` to ``palms[1]`` and the hand turns
+    rigidly about it at an even rate, from palm frame ``bases[0]`` to ``bases[1]`` (rows:
+    direction, normal, side; `partial_rotation`), while every point changes linearly in the
+    palm's frame.
+
+    Returns:
+        (point, basis, palm): ``point(pa, pb)`` maps a point of a and the same point of b, (3,)
+        or (n, 3), to where it lies; the palm frame and the palm position there.
+    """
+    (palm_a, palm_b), (basis_a, basis_b) = [np.asarray(v, float) for v in palms], bases
+    basis = (partial_rotation(basis_b.T @ basis_a, s) @ basis_a.T).T
+    palm = (1 - s) * palm_a + s * palm_b
+
+    def point(pa, pb) -> np.ndarray:
+        local = ((1 - s) * (np.asarray(pa, float) - palm_a) @ basis_a.T
+                 + s * (np.asarray(pb, float) - palm_b) @ basis_b.T)
+        return palm + local @ basis
+
+    return point, basis, palm
 
 
 class _Player:
@@ -348,24 +367,19 @@ def blend_hands(a: dict, b: dict, s: float) -> dict:
     """Returns hand `a` taken a fraction `s` of the way to hand `b`.
 
     The palm moves in a straight line and the hand turns rigidly about it at an even rate
-    (the rotation from `a`'s palm frame to `b`'s, `partial_rotation`), while the joints change
-    linearly in the palm's frame: a hand turned over is turned, not squeezed through its palm
+    (the rotation from `a`'s palm frame to `b`'s), while the joints change linearly in the
+    palm's frame (`turned_hand`): a hand turned over is turned, not squeezed through its palm
     with its normal flipping in a frame or two (a fast roll, a rotate). Velocity, grab and
     pinch change linearly; the id is `a`'s.
     """
     def lerp(x, y):
         return np.asarray(x, dtype=float) * (1 - s) + np.asarray(y, dtype=float) * s
 
-    basis_a = palm_basis(np, np.asarray(a["direction"], float), np.asarray(a["palm_normal"], float))
-    basis_b = palm_basis(np, np.asarray(b["direction"], float), np.asarray(b["palm_normal"], float))
-    basis = (partial_rotation(basis_b.T @ basis_a, s) @ basis_a.T).T
-    palm_a, palm_b = np.asarray(a["palm_position"], float), np.asarray(b["palm_position"], float)
-    palm = lerp(palm_a, palm_b)
+    turned, basis, palm = turned_hand((a["palm_position"], b["palm_position"]),
+                                      (_basis(a), _basis(b)), s)
 
     def point(pa, pb) -> list[float]:
-        local = lerp(basis_a @ (np.asarray(pa, float) - palm_a),
-                     basis_b @ (np.asarray(pb, float) - palm_b))
-        return (palm + basis.T @ local).tolist()
+        return turned(pa, pb).tolist()
 
     fingers = [{"type": fa["type"], "bones": [
         {**ba, "prev_joint": point(ba["prev_joint"], bb["prev_joint"]),
