@@ -101,7 +101,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --folds: continuous streams played per held-out person "
                              f"[{STREAMS_PER_PERSON}]; the false-trigger rate of a few is a "
                              "small sample that moves by half between draws: 24 gives a "
-                             "steadier figure (about 3 min more)")
+                             "steadier figure (about 2 min more on 2 cores)")
     parser.add_argument("--misses", action="store_true",
                         help="with --folds: list every held-out swipe recording answered wrong, "
                              "with how far its palm moved")
