@@ -62,7 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, metrics, wire
-from cbgo.hands.features import palm_basis
+from cbgo.hands.features import hand_basis
 from cbgo.hands.model import mirrored_hand
 from cbgo.services.dynamic_gesture import leapjs, shrec, simdata
 from cbgo.services.dynamic_gesture.classifier import MIRROR, path_of
@@ -197,14 +197,9 @@ def turned_joints(a: np.ndarray, b: np.ndarray, hand_a: dict, hand_b: dict,
     real hand made.
     """
     palms = a[shrec.PALM_JOINT], b[shrec.PALM_JOINT]  # the skeletons' own units
-    out = [turned_hand(palms, (_basis(hand_a), _basis(hand_b)), float(s))[0](a, b)
-           for s in np.asarray(shares, dtype=float)]
+    bases = hand_basis(hand_a), hand_basis(hand_b)
+    out = [turned_hand(palms, bases, float(s))[0](a, b) for s in np.asarray(shares, dtype=float)]
     return np.stack(out) if out else np.empty((0, *a.shape))
-
-
-def _basis(hand: dict) -> np.ndarray:
-    return palm_basis(np, np.asarray(hand["direction"], float),
-                      np.asarray(hand["palm_normal"], float))
 
 
 def turned_hand(palms: tuple, bases: tuple, s: float):
@@ -376,7 +371,7 @@ def blend_hands(a: dict, b: dict, s: float) -> dict:
         return np.asarray(x, dtype=float) * (1 - s) + np.asarray(y, dtype=float) * s
 
     turned, basis, palm = turned_hand((a["palm_position"], b["palm_position"]),
-                                      (_basis(a), _basis(b)), s)
+                                      (hand_basis(a), hand_basis(b)), s)
 
     def point(pa, pb) -> list[float]:
         return turned(pa, pb).tolist()

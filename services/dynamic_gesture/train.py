@@ -79,7 +79,8 @@ first reported gesture (what a consumer that acts at once sees)."""
 SUFFIXES = {"all": "", "finals": "_finals", "first": "_first"}  # of the figures' keys
 STREAMS_PER_PERSON = 2  # continuous streams of each held-out person (`realbench.person_streams`)
 # Two streams per person give about ten false triggers over 20 people: enough to see a rule
-# move them a lot, too few to tell 0.8/min from 1.2/min (`--streams 6` plays three times as many).
+# move them a lot, too few to tell 0.8/min from 1.2/min; so are six (draws of six gave 0.7 to
+# 1.3/min in stop 45), and `--streams 24` is the figure to go by (README).
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -125,15 +125,9 @@ def load_poses(folder: Path = POSES_DIR) -> dict[str, list[dict]]:
     return out
 
 
-def palm_frame(hand: dict) -> np.ndarray:
-    """Returns the rows direction, palm normal (made orthogonal) and their cross product."""
-    return F.palm_basis(np, np.asarray(hand["direction"], dtype=np.float64),
-                        np.asarray(hand["palm_normal"], dtype=np.float64))
-
-
 def turned_like(hand: dict, reference: dict) -> dict:
     """Returns `hand` turned about its palm centre so that its palm frame is `reference`'s."""
-    rot = palm_frame(reference).T @ palm_frame(hand)
+    rot = F.hand_basis(reference).T @ F.hand_basis(hand)
     centre = np.asarray(hand["palm_position"], dtype=np.float64)
 
     def point(p) -> list[float]:

@@ -105,6 +105,12 @@ def palm_basis(xp: Any, direction: Any, normal: Any) -> Any:
     return xp.stack([d, n, xp.cross(d, n)], -2)
 
 
+def hand_basis(hand: dict) -> np.ndarray:
+    """Returns a `cbgo/hands/frame` hand's own frame (`palm_basis`): direction, normal, side."""
+    return palm_basis(np, np.asarray(hand["direction"], dtype=np.float64),
+                      np.asarray(hand["palm_normal"], dtype=np.float64))
+
+
 def features_from_geometry(xp: Any, palm: Any, wrist: Any, direction: Any, bone_dirs: Any,
                            tips: Any) -> Any:
     """Computes the features from stacked geometry; shared by numpy and the torch calibration.
