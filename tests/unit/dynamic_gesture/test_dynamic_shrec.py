@@ -295,13 +295,13 @@ class _Answers:
 
 def test_a_trial_is_answered_by_its_surest_window_its_surest_final_and_its_first_gesture(synth):
     windows = synth.feed(Segmenter(), synth.trajectory(
-        [("hold", 0.5), ("move", 0.45, (0.0, 160.0, 0.0)), ("hold", 0.5)]))
-    assert len(windows) >= 3 and windows[-1].final
+        [("hold", 0.5), ("move", 0.7, (0.0, 240.0, 0.0)), ("hold", 0.5)]))
+    assert len(windows) >= 5 and windows[-1].final
 
-    def probs(i, window):  # a sure early swipe_down, then swipe_up surer, final unsure
+    def probs(i, window):  # a sure early swipe_down (confirmed), then swipe_up surer, final unsure
         if window.final:
             return [0.55, 0.0, 0.45]
-        return [0.0, 0.7, 0.3] if i == 0 else [0.95, 0.0, 0.05]
+        return [0.0, 0.7, 0.3] if i < 2 else [0.95, 0.0, 0.05]
 
     answers = train.trial_answers(_Answers(probs), windows, 1.5)
     assert answers == {"all": "swipe_up", "finals": "swipe_up", "first": "swipe_down"}
