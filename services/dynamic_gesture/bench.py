@@ -61,10 +61,10 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, metrics, wire
-from cbgo.services.dynamic_gesture import realbench, simdata
+from cbgo.services.dynamic_gesture import realbench, shrec, simdata, train
 from cbgo.services.dynamic_gesture.classifier import NONE, Classifier, normalised
 from cbgo.services.dynamic_gesture.dtw import dtw_naive, fastdtw_backend
-from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library
+from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, save_default
 from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig
 from cbgo.simuser.scenario import load_scenario
 from cbgo.simuser.user import SimulatedUser
@@ -106,6 +106,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="recordings per swipe, and of the other gestures; 0: all [12]")
     real.add_argument("--streams", type=int, default=3,
                       help="continuous streams (one person each, hand never leaves) [3]")
+    real.add_argument("--folds", type=int, default=0, metavar="N",
+                      help="with --real on the SHREC'17 train split: deal its people into N "
+                           "groups and play each group's recordings (--per-class of each per "
+                           "group, --streams per group) against a library learned here "
+                           "without them (as `cbgo train dynamic --folds N` does offline; "
+                           "about 3 min per group on 2 cores): held-out people through live "
+                           "services, the episode summary included; 0: the installed library "
+                           "[0]")
     real.add_argument("--mirror", action="store_true",
                       help="with --real: play every recording mirrored, as the other hand "
                            "makes it (x negated, sides swapped, swipe_left scored as "
@@ -288,11 +296,53 @@ def _print_block(title: str, block: dict, names: list[str]) -> None:
     print(f"balanced accuracy {block['balanced_accuracy']:.2%}, ECE {block['ece']:.3f}")
 
 
+def run_real_folds(args: argparse.Namespace) -> int:
+    """``--real DIR --folds N``: each group of people live, against a library learned without it.
+
+    The libraries are learned as `cbgo train dynamic --real DIR` learns the shipped one (the
+    same simulated users, the other groups' people); the trials of all groups are scored
+    together.
+    """
+    device, all_trials, sequences = realbench.real_trials(args.real, "train")
+    if device != "shrec17" or args.split != "train":
+        print("--folds needs the SHREC'17 datasetShrec folder and its train split: the libraries "
+              "are learned from the other groups of that split's people", file=sys.stderr)
+        return 2
+    return_s = SegmenterConfig().return_s
+    sim_train, sim_calib = train.simulated_sets(train.USERS, train.CALIB_USERS, train.REPS,
+                                                 train.TRAIN_SEED, args.jobs)
+    recordings = shrec.sequence_windows(sequences)
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k, (held, classifier) in enumerate(train.fold_classifiers(
+                sim_train, sim_calib, recordings, args.folds, return_s)):
+            library = Path(tmp) / f"group-{k + 1}.json"
+            save_default(library, classifier.templates, classifier.calibration,
+                         train.observation(), {"held_out_people": sorted(held)})
+            people = {str(person) for person in held}
+            trials = realbench.pick_trials([t for t in all_trials if t.person in people],
+                                           args.per_class, args.seed + k)
+            streams = realbench.stream_sets(device, [], [s for s in sequences if s.person in held],
+                                            args.streams, args.seed + 1 + k)
+            where = f"group {k + 1}/{args.folds} of shrec17's train split, people {sorted(held)}"
+            results.append(realbench.play_live(trials, streams, device, where, library=library))
+    latency = [ms for r in results for ms in r["stroke_latencies_ms"]]
+    merged = {"trials": [t for r in results for t in r["trials"]],
+              "streams": [s for r in results for s in r["streams"]],
+              "stroke_latencies_ms": latency, "latency_ms": realbench.latency_figures(latency),
+              "episode_stray": {key: sum(r["episode_stray"].get(key, 0) for r in results)
+                                for key in ("late", "outside")}}
+    print(f"\nall {args.folds} groups, each played against a library learned without it:")
+    return realbench.report_live(merged, args.json)
+
+
 def run(args: argparse.Namespace) -> int:
     """Runs the three parts and prints their figures (or the real-data bench)."""
     if args.plot is not None and args.realism is None:
         print("--plot draws the --realism comparison: give --realism DIR too", file=sys.stderr)
         return 2
+    if args.real is not None and args.folds > 0:
+        return run_real_folds(args)
     if args.real is not None:
         return realbench.run_real(args.real, args.split, args.per_class, args.streams,
                                   args.seed, args.json, args.mirror, args.stream_returns)

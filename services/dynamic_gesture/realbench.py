@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import tempfile
 import threading
 import time
@@ -66,6 +67,7 @@ from cbgo.hands.features import hand_basis
 from cbgo.hands.model import mirrored_hand
 from cbgo.services.dynamic_gesture import leapjs, shrec, simdata
 from cbgo.services.dynamic_gesture.classifier import MIRROR, path_of
+from cbgo.services.dynamic_gesture.library import trained_path
 from cbgo.services.dynamic_gesture.stroke import (
     GESTURE_P,
     REVERSE_MIN_MM,
@@ -544,13 +546,17 @@ def describe_streams(total: dict) -> str:
             f"some windows {total['misread']}")
 
 
-def latencies(player: _Player) -> dict:
-    """Stroke end → arrival of the stroke's last window, over everything collected."""
+def stroke_latencies(player: _Player) -> list[float]:
+    """Stroke end → arrival of the stroke's last window (ms), over everything collected."""
     last: dict[tuple, tuple[float, dict]] = {}
     with player.lock:
         for arrival, msg in player.dynamic:
             last[(msg["hand_id"], msg["window"][0])] = (arrival, msg)
-    ms = [1000.0 * (a - m["window"][1]) for a, m in last.values()]
+    return [1000.0 * (a - m["window"][1]) for a, m in last.values()]
+
+
+def latency_figures(ms: list[float]) -> dict:
+    """Returns the count, median, 90th percentile and largest of `stroke_latencies`."""
     if not ms:
         return {}
     return {"strokes": len(ms), "p50": float(np.median(ms)), "p90": float(np.percentile(ms, 90)),
@@ -648,11 +654,17 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
 
 
 def play_live(trials: list[Trial], streams: list[tuple], device: str, where: str,
-              log=print) -> dict:
-    """Plays trials, then streams, through a router, dynamic-gesture and episode in real time."""
+              log=print, library: Path | None = None) -> dict:
+    """Plays trials, then streams, through a router, dynamic-gesture and episode in real time.
+
+    `library`: a library file the dynamic-gesture service uses instead of the installed one.
+    """
     from cbgo.testing import Stack  # noqa: PLC0415 (test harness only when benching live)
 
     with tempfile.TemporaryDirectory() as tmp, Stack(Path(tmp)) as stack:
+        if library is not None:  # where the service looks first (`library.trained_path`)
+            trained_path(Path(tmp)).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(library, trained_path(Path(tmp)))
         stack.start_router()
         for name in ("dynamic-gesture", "episode"):
             stack.start_service(name, env={"CBGO_DATA_DIR": tmp})
@@ -662,7 +674,8 @@ def play_live(trials: list[Trial], streams: list[tuple], device: str, where: str
         log(f"{len(trials)} trials of {where}, real time")
         result = run_trials(player, trials, device, log)
         result["streams"] = [run_stream(player, *stream, device) for stream in streams]
-        result["latency_ms"] = latencies(player)
+        result["stroke_latencies_ms"] = stroke_latencies(player)
+        result["latency_ms"] = latency_figures(result["stroke_latencies_ms"])
         # Gesture messages the episode service could not place: a summary misses them.
         result["episode_stray"] = stack.status("episode").get("stray", {})
     return result

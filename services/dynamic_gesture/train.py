@@ -64,6 +64,7 @@ from cbgo.wire import DYNAMIC_GESTURES
 
 TRAIN_SEED = 1000
 CALIB_SEED = 2000
+USERS, CALIB_USERS, REPS = 30, 24, 2  # the shipped library's simulated users, each gesture ×2
 # In the calibration fit all "none" windows weigh together this share of the gesture windows'
 # weight. Unweighted, the many "none" windows (preparations, returns, the data set's other
 # gestures) pull the fit towards "none" and real swipes, often unsure, go unreported; a missed
@@ -85,10 +86,11 @@ STREAMS_PER_PERSON = 2  # continuous streams of each held-out person (`realbench
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the trainer's flags."""
-    parser.add_argument("--users", type=int, default=30, help="training users [30]")
-    parser.add_argument("--calib-users", type=int, default=24, help="calibration users [24]")
-    parser.add_argument("--reps", type=int, default=2,
-                        help="times each user performs every gesture [2]")
+    parser.add_argument("--users", type=int, default=USERS, help=f"training users [{USERS}]")
+    parser.add_argument("--calib-users", type=int, default=CALIB_USERS,
+                        help=f"calibration users [{CALIB_USERS}]")
+    parser.add_argument("--reps", type=int, default=REPS,
+                        help=f"times each user performs every gesture [{REPS}]")
     parser.add_argument("--seed", type=int, default=TRAIN_SEED,
                         help=f"first training user's seed [{TRAIN_SEED}]")
     parser.add_argument("--jobs", type=int, default=2, help="processes simulating users [2]")
@@ -183,6 +185,36 @@ def fit(sim_train: list, sim_calib: list, real_people: list) -> Classifier:
     return classifier
 
 
+def fold_classifiers(sim_train: list, sim_calib: list, recordings: list, folds: int,
+                     return_s: float):
+    """Yields (held-out people, a classifier learned without them) for each of `folds` groups.
+
+    The SHREC'17 recordings' people, sorted, are dealt into the groups in turn.
+    """
+    people = sorted({seq.person for seq, _, _ in recordings})
+    for k in range(folds):
+        held = set(people[k::folds])
+        train_people = shrec.people_data([r for r in recordings if r[0].person not in held],
+                                         return_s)
+        yield held, fit(sim_train, sim_calib, train_people)
+
+
+def simulated_sets(users: int, calib_users: int, reps: int, seed: int, jobs: int
+                   ) -> tuple[list, list]:
+    """Returns the simulated training users and the calibration users (seeds `CALIB_SEED` on)."""
+    sim_train = simdata.generate(list(range(seed, seed + users)), simdata.TRAIN, reps, jobs)
+    calib_seed = seed + CALIB_SEED
+    sim_calib = simdata.generate(list(range(calib_seed, calib_seed + calib_users)),
+                                 simdata.TRAIN, reps, jobs)
+    return sim_train, sim_calib
+
+
+def observation() -> dict:
+    """Returns how a library's templates observe a stroke (its ``observation`` block)."""
+    return {"rate_hz": RATE_HZ, "dims": ["x", "y", "z", "k*roll"],
+            "roll_scale_mm_per_rad": SegmenterConfig().roll_scale_mm_per_rad}
+
+
 def trial_answers(classifier: Classifier, windows: list, return_s: float) -> dict[str, str]:
     """Returns what the service reports for one recording, per rule of `RULES`.
 
@@ -226,11 +258,8 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     streams = []
     rng = np.random.default_rng(TRAIN_SEED)
     config = SegmenterConfig(return_s=return_s)
-    for k in range(folds):
-        held = set(people[k::folds])
-        train_people = shrec.people_data([r for r in recordings if r[0].person not in held],
-                                         return_s)
-        classifier = fit(sim_train, sim_calib, train_people)
+    for k, (held, classifier) in enumerate(fold_classifiers(sim_train, sim_calib, recordings,
+                                                            folds, return_s)):
         for seq, windows, _ in recordings:
             if seq.person not in held:
                 continue
@@ -312,10 +341,7 @@ def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
     t0 = time.perf_counter()
     return_s = SegmenterConfig().return_s
     sequences = [] if real is None else shrec.read_split(real, "train")  # fails before simulating
-    sim_train = simdata.generate(list(range(seed, seed + users)), simdata.TRAIN, reps, jobs)
-    calib_seed = seed + CALIB_SEED
-    sim_calib = simdata.generate(list(range(calib_seed, calib_seed + calib_users)),
-                                 simdata.TRAIN, reps, jobs)
+    sim_train, sim_calib = simulated_sets(users, calib_users, reps, seed, jobs)
     log(f"simulated {users} training and {calib_users} calibration users in "
         f"{time.perf_counter() - t0:.1f} s")
     recordings = []
@@ -383,13 +409,10 @@ def run(args: argparse.Namespace) -> int:
     templates, calibration, summary = train(args.users, args.calib_users, args.reps, args.seed,
                                             args.jobs, args.real, args.folds,
                                             streams_per_person=args.streams)
-    config = SegmenterConfig()
-    observation = {"rate_hz": RATE_HZ, "dims": ["x", "y", "z", "k*roll"],
-                   "roll_scale_mm_per_rad": config.roll_scale_mm_per_rad}
     lpo = summary.get("leave_people_out", {})
     saved = {**summary, "leave_people_out": {k: v for k, v in lpo.items() if k != "misses"}
              } if lpo else summary
-    save_default(out, templates, calibration, observation, saved)
+    save_default(out, templates, calibration, observation(), saved)
     if "leave_people_out" in summary:
         print_leave_people_out(summary["leave_people_out"], args.misses)
     figures = summary["calibration_set"]

@@ -324,6 +324,29 @@ def test_the_cli_names_a_missing_data_folder_without_a_traceback(tmp_path, capsy
     assert str(tmp_path) in err
 
 
+def test_live_groups_of_held_out_people_need_the_shrec_train_split(dataset, capsys):
+    # `cbgo bench dynamic --real DIR --folds N` learns each group's library from the train
+    # split's other people: the test split's are never learned from.
+    from cbgo.cli.main import main
+
+    with pytest.raises(SystemExit) as ended:
+        main(["bench", "dynamic", "--real", str(dataset), "--split", "test", "--folds", "2"])
+    assert ended.value.code == 2 and "train split" in capsys.readouterr().err
+
+
+def test_each_group_of_people_is_held_out_of_its_library_once(tmp_path):
+    rows = []
+    for person in (2, 3, 4, 5, 6):
+        write_sequence(tmp_path, 7, person, 1, np.repeat(upright_hand()[None], 30, 0))
+        rows.append(f"7 1 {person} 1 7 13 30")
+    (tmp_path / "train_gestures.txt").write_text("\n".join(rows) + "\n")
+    (tmp_path / "test_gestures.txt").write_text("")
+    recordings = shrec.sequence_windows(shrec.read_split(tmp_path, "train"))
+    sim = [simdata.run_user(7, simdata.TRAIN, reps=1)]
+    groups = [held for held, _ in train.fold_classifiers(sim, sim, recordings, 2, 1.5)]
+    assert groups == [{2, 4, 6}, {3, 5}]
+
+
 def test_whether_a_swipe_was_returned_is_unknown_where_its_recording_ends_too_soon(dataset):
     (seq,) = shrec.read_split(dataset, "train")
     windows = shrec.segment(seq, Segmenter())
