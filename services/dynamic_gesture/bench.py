@@ -326,9 +326,7 @@ def run_real_folds(args: argparse.Namespace) -> int:
                                             args.streams, args.seed + 1 + k)
             where = f"group {k + 1}/{args.folds} of shrec17's train split, people {sorted(held)}"
             if args.mirror:
-                trials = [realbench.mirrored_trial(t) for t in trials]
-                streams = [realbench.mirrored_stream(*stream) for stream in streams]
-                where += ", mirrored into the other hand"
+                trials, streams, where = realbench.mirrored_set(trials, streams, where)
             results.append(realbench.play_live(trials, streams, device, where, library=library))
     latency = [ms for r in results for ms in r["stroke_latencies_ms"]]
     merged = {"trials": [t for r in results for t in r["trials"]],

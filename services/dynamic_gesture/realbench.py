@@ -150,6 +150,13 @@ def mirrored_stream(frames: list[tuple], spans: list[tuple]) -> tuple[list[tuple
             [(MIRROR.get(name, name), t0, t1) for name, t0, t1 in spans])
 
 
+def mirrored_set(trials: list[Trial], streams: list[tuple], where: str
+                 ) -> tuple[list[Trial], list[tuple], str]:
+    """Returns trials, streams and their description as the other hand makes them."""
+    return ([mirrored_trial(t) for t in trials], [mirrored_stream(*s) for s in streams],
+            where + ", mirrored into the other hand")
+
+
 def pick_trials(trials: list[Trial], per_class: int, seed: int) -> list[Trial]:
     """Returns `per_class` trials of each swipe and of the other gestures, people mixed.
 
@@ -647,9 +654,7 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
     streams_played = stream_sets(device, all_trials, sequences, streams, seed + 1, returns)
     where = f"{device}'s {split} split" if device == "shrec17" else device
     if mirror:
-        trials = [mirrored_trial(t) for t in trials]
-        streams_played = [mirrored_stream(*s) for s in streams_played]
-        where += ", mirrored into the other hand"
+        trials, streams_played, where = mirrored_set(trials, streams_played, where)
     return report_live(play_live(trials, streams_played, device, where, log), json_path, log)
 
 
@@ -663,8 +668,9 @@ def play_live(trials: list[Trial], streams: list[tuple], device: str, where: str
 
     with tempfile.TemporaryDirectory() as tmp, Stack(Path(tmp)) as stack:
         if library is not None:  # where the service looks first (`library.trained_path`)
-            trained_path(Path(tmp)).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(library, trained_path(Path(tmp)))
+            used = trained_path(Path(tmp))
+            used.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(library, used)
         stack.start_router()
         for name in ("dynamic-gesture", "episode"):
             stack.start_service(name, env={"CBGO_DATA_DIR": tmp})
