@@ -34,6 +34,9 @@
    (`realbench.simulated_trials`: each dynamic gesture once per appearance of the hand,
    rotate included), to score the episode summary on them too.
 
+Every live run and the simulated streams end with issue 14's goals, judged on the figures just
+measured (`realbench.live_goals`, `realbench.stream_goals`).
+
 Examples::
 
     cbgo bench dynamic
@@ -104,6 +107,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                            "acceptance checks]")
     real.add_argument("--per-class", type=int, default=12,
                       help="recordings per swipe, and of the other gestures; 0: all [12]")
+    real.add_argument("--others", type=int, default=None, metavar="N",
+                      help="recordings of the other gestures (grab, tap, pinch...) instead: "
+                           "0 plays none, -1 all [as --per-class]")
     real.add_argument("--streams", type=int, default=3,
                       help="continuous streams (one person each, hand never leaves) [3]")
     real.add_argument("--folds", type=int, default=0, metavar="N",
@@ -321,7 +327,7 @@ def run_real_folds(args: argparse.Namespace) -> int:
                          train.observation(), {"held_out_people": sorted(held)})
             people = {str(person) for person in held}
             trials = realbench.pick_trials([t for t in all_trials if t.person in people],
-                                           args.per_class, args.seed + k)
+                                           args.per_class, args.seed + k, args.others)
             streams = realbench.stream_sets(device, [], [s for s in sequences if s.person in held],
                                             args.streams, args.seed + 1 + k)
             where = f"group {k + 1}/{args.folds} of shrec17's train split, people {sorted(held)}"
@@ -347,13 +353,14 @@ def run(args: argparse.Namespace) -> int:
         return run_real_folds(args)
     if args.real is not None:
         return realbench.run_real(args.real, args.split, args.per_class, args.streams,
-                                  args.seed, args.json, args.mirror, args.stream_returns)
+                                  args.seed, args.json, args.mirror, args.stream_returns,
+                                  others=args.others)
     if args.live_sim > 0:
         trials = realbench.simulated_trials(args.live_sim, args.seed,
                                             simdata.RANGES[args.ranges])
         result = realbench.play_live(trials, [], "simulated",
                                      f"{args.live_sim} simulated {args.ranges} users")
-        return realbench.report_live(result, args.json)
+        return realbench.report_live(result, args.json, synthetic=True)
     if args.realism is not None:
         config = SegmenterConfig()
         real = realbench.real_habits(args.realism, "train", config)
@@ -385,6 +392,8 @@ def run(args: argparse.Namespace) -> int:
         figures["streams"] = realbench.run_streams(classifier, args.streams_sim,
                                                    args.seed + 20_000, SegmenterConfig(),
                                                    simdata.RANGES[args.ranges])
+        print("goals (issue 14):\n"
+              + metrics.format_goals(realbench.stream_goals(figures["streams"])))
     finals = [lw.window for u in users for lw in u.windows if lw.window.final]
     figures["cost"] = cost(classifier, finals)
     c = figures["cost"]

@@ -401,6 +401,8 @@ def print_leave_people_out(block: dict, misses: bool = False) -> None:
         print(f"\ncontinuous streams of the held-out people ({each} each, 10 "
               f"recordings, hand never leaves; replayed offline): "
               + realbench.describe_streams(s))
+        print("goals (issue 14; these streams replayed offline, not over the wire):\n"
+              + metrics.format_goals(realbench.stream_goals(s)))
 
 
 def run(args: argparse.Namespace) -> int:

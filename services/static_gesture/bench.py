@@ -70,7 +70,7 @@ from cbgo import keys, wire
 from cbgo.errors import RecordingError
 from cbgo.hands.data import load_real_features
 from cbgo.hands.features import hands_features
-from cbgo.metrics import format_confusion
+from cbgo.metrics import format_confusion, format_goals
 from cbgo.services.static_gesture import (
     crossval,
     guinevere,
@@ -407,8 +407,7 @@ def _print(fig: dict) -> None:
                   f"classification): p50 {lat['bridge_only_p50_ms']:.2f} ms, p99 "
                   f"{lat['bridge_only_p99_ms']:.2f} ms, max {lat['bridge_only_max_ms']:.2f} ms")
     print("\ngoals:")
-    for name, ok, text in _goals(fig):
-        print(f"  {'PASS' if ok else ('----' if ok is None else 'MISS')}  {name}: {text}")
+    print(format_goals(_goals(fig)))
 
 
 def _confusion_text(fig: dict) -> str:

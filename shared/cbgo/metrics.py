@@ -85,3 +85,9 @@ def format_confusion(confusion: np.ndarray, names: list[str], width: int = 8) ->
     rows = [f"{name[:11]:<12}" + "".join(f"{v:>{width}}" for v in row)
             for name, row in zip(names, confusion, strict=True)]
     return "\n".join([head, *rows])
+
+
+def format_goals(goals: list[tuple[str, bool | None, str]]) -> str:
+    """Returns a bench's goals as lines "PASS|MISS|----  goal: figure" ("----": not measured)."""
+    marks = {True: "PASS", False: "MISS", None: "----"}
+    return "\n".join(f"  {marks[ok]}  {name}: {text}" for name, ok, text in goals)

@@ -272,6 +272,39 @@ def test_the_live_report_names_gesture_messages_no_summary_holds(capsys):
     assert not any("episode service" in x for x in lines)
 
 
+def test_the_live_report_judges_issue_14s_goals_and_a_short_stream_sample_not_at_all():
+    rows = [{"truth": t, "dynamic": t, "first": t, "summary": t, "person": p}
+            for p in "abc" for t in ("swipe_up", "swipe_down")]
+    rows[0]["summary"] = realbench.NOTHING  # person a's swipe_up missing from its summary
+    stream = {"strokes": 10, "recalled": 9, "false_triggers": 3, "other_gesture_triggers": 0,
+              "misread": 0, "other_minutes": 2.0}
+    result = {"trials": rows, "streams": [stream], "latency_ms": {}, "episode_stray": {}}
+    lines = []
+    assert realbench.report_live(result, None, lines.append) == 0
+    goals = {name: (met, text) for name, met, text in result["goals"]}
+    assert goals["real swipes: gestures/dynamic ≥ 95% balanced"][0] is True
+    met, text = goals["real swipes: episode summary's g ≥ 95% balanced"]
+    assert met is False and text.startswith("83.3%") and "interval over the 3 people" in text
+    assert goals["continuous streams: recall ≥ 90%"] == (True, "9/10 = 90.0%")
+    met, text = goals["continuous streams: false triggers ≤ 1/min"]
+    assert met is None and "1.50/min" in text and "too few to judge" in text  # 2 min only
+    printed = "\n".join(lines)
+    assert "  MISS  real swipes: episode summary's g ≥ 95% balanced: 83.3%" in printed
+    assert "  ----  continuous streams: false triggers ≤ 1/min: 3 in 2.0 min" in printed
+    long = realbench.stream_goals({**stream, "other_minutes": 12.0})
+    assert long[1][1] is True  # 3 in 12 min: 0.25/min
+    assert realbench.stream_goals({**stream, "false_triggers": 13, "other_minutes": 12.0}
+                                  )[1][1] is False
+    synthetic = realbench.live_goals({"dynamic": {"balanced_accuracy": 0.96, "interval": None,
+                                                  "people": 0},
+                                      "summary": {"balanced_accuracy": 0.96, "interval": None,
+                                                  "people": 0}},
+                                     {"strokes": 0}, synthetic=True)
+    assert synthetic[0][:2] == ("synthetic strokes, rotate included: gestures/dynamic ≥ 97% "
+                                "balanced", False)
+    assert synthetic[2] == ("continuous streams", None, "none played")
+
+
 def test_the_live_score_reads_the_field_asked_for():
     rows = [{"truth": "swipe_up", "dynamic": "swipe_up", "first": "swipe_down"},
             {"truth": "swipe_down", "dynamic": "swipe_down", "first": "swipe_down"}]
@@ -382,3 +415,15 @@ def test_plot_without_realism_says_what_it_draws(tmp_path, capsys):
         main(["bench", "dynamic", "--plot", str(tmp_path)])
     assert ended.value.code == 2 and "--realism" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())  # nothing was run or drawn
+
+
+def test_the_live_bench_plays_as_many_other_gestures_as_asked():
+    trials = [realbench.Trial(truth, truth, str(i % 3), None)
+              for i in range(4) for truth in ("swipe_up", "swipe_down", "none", "none")]
+    assert realbench.pick_trials(trials, 0, 1) == trials  # everything, in order
+    swipes_only = realbench.pick_trials(trials, 0, 1, others=0)
+    assert [t.truth for t in swipes_only].count("none") == 0 and len(swipes_only) == 8
+    two = realbench.pick_trials(trials, 1, 1, others=2)
+    assert sorted(t.truth for t in two) == ["none", "none", "swipe_down", "swipe_up"]
+    assert len(realbench.pick_trials(trials, 1, 1)) == 3  # others as many as per_class
+    assert len(realbench.pick_trials(trials, 1, 1, others=-1)) == 2 + 8

@@ -82,3 +82,12 @@ def test_the_benchmark_scores_final_windows_and_counts_missed_strokes(one_user):
     cost = bench.cost(classifier, [lw.window for lw in one_user.windows if lw.window.final],
                       limit=3)
     assert cost["classify_ms_median"] > 0 and cost["templates"] == 5
+
+
+def test_the_held_out_peoples_streams_are_judged_against_issue_14s_goals(capsys):
+    streams = {"strokes": 100, "recalled": 95, "false_triggers": 12, "other_gesture_triggers": 3,
+               "misread": 1, "other_minutes": 10.0}
+    train.print_leave_people_out({"folds": 4, "people": [1, 2], "streams": streams})
+    out = capsys.readouterr().out
+    assert "  PASS  continuous streams: recall ≥ 90%: 95/100 = 95.0%" in out
+    assert "  MISS  continuous streams: false triggers ≤ 1/min: 12 in 10.0 min = 1.20/min" in out

@@ -1,8 +1,8 @@
-"""The benches' figures: the people interval of a balanced accuracy."""
+"""The benches' figures: the people interval of a balanced accuracy, the goals' lines."""
 
 import numpy as np
 
-from cbgo.metrics import balanced_accuracy, people_interval
+from cbgo.metrics import balanced_accuracy, format_goals, people_interval
 
 
 def test_people_who_are_all_right_leave_no_doubt():
@@ -26,3 +26,10 @@ def test_the_interval_draws_whole_people_and_holds_the_figure():
     spread[np.arange(0, len(people), 10)] = 1 - spread[np.arange(0, len(people), 10)]
     s_lo, s_hi = people_interval(y_true, spread, people)
     assert s_hi - s_lo < hi - lo
+
+
+def test_goals_are_printed_passed_missed_or_not_measured():
+    text = format_goals([("a ≥ 95 %", True, "96 %"), ("b ≤ 1/min", False, "2/min"),
+                                 ("c", None, "skipped")])
+    assert text.splitlines() == ["  PASS  a ≥ 95 %: 96 %", "  MISS  b ≤ 1/min: 2/min",
+                                 "  ----  c: skipped"]
