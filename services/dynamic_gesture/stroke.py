@@ -100,6 +100,7 @@ RATE_HZ = 20.0  # the paper's resampling rate of the palm trajectory
 DT = 1.0 / RATE_HZ
 DEFAULT_CENTRE_MM = (0.0, 230.0, 0.0)  # the field centre; cbgo.simuser.motion.CENTRE_MM agrees
 DIMS = 4  # x, y, z, k·roll
+BIN_TOLERANCE_S = 1e-6  # a frame this little past a 50 ms bin's end is stamped on it
 SPEED, RATE = 7, 8  # a sample: t, x, y, z, roll, grab, pinch, speed (mm/s), roll rate (°/s)
 # A tracking jump is also this many times faster than each of the palm's last JUMP_HISTORY
 # frame-to-frame steps: a hand speeds up over a tenth of a second, a tracker that re-fits its
@@ -319,33 +320,46 @@ def observation(positions: np.ndarray, rolls: np.ndarray, roll_scale: float) -> 
 
 
 class _Resampler:
-    """Averages one hand's frames into 50 ms bins (the 20 Hz samples)."""
+    """Averages one hand's frames into 50 ms bins (the 20 Hz samples).
+
+    The bins are counted from the hand's first frame, and a frame stamped on a bin's end (a
+    30, 60 or 120 Hz clock meets the 20 Hz bins every 0.1 s or 0.05 s) belongs to that bin
+    whatever the clock's origin: up to `BIN_TOLERANCE_S` past it. Compared as they come, an
+    epoch stamp's rounding (about 2·10⁻⁷ s) put such frames on either side, so the same
+    recording gave other samples, and other answers, at another time of day.
+    """
 
     def __init__(self, t0: float):
-        self.bin_end = t0 + DT
-        self.acc = np.zeros(7)  # t, x, y, z, roll, grab, pinch sums
+        self.t0 = t0
+        self.bins = 1  # the bin in progress ends at t0 + bins·DT
+        self.acc = np.zeros(7)  # t − t0, x, y, z, roll, grab, pinch sums
         self.count = 0
         self.last: np.ndarray | None = None
 
     def add(self, t: float, pos, roll: float, grab: float, pinch: float) -> list[np.ndarray]:
         out = []
-        while t > self.bin_end:
+        since = t - self.t0
+        while since > self.bins * DT + BIN_TOLERANCE_S:
             if self.count:
                 self.last = self.acc / self.count
             elif self.last is not None:
-                self.last = np.concatenate([[self.bin_end - DT / 2], self.last[1:]])
+                self.last = np.concatenate([[(self.bins - 0.5) * DT], self.last[1:]])
             if self.last is not None:
-                out.append(self.last.copy())
+                out.append(self._sample(self.last))
             self.acc[:] = 0.0
             self.count = 0
-            self.bin_end += DT
-        self.acc += (t, *pos, roll, grab, pinch)
+            self.bins += 1
+        self.acc += (since, *pos, roll, grab, pinch)
         self.count += 1
         return out
 
     def flush(self) -> np.ndarray | None:
         """Returns the sample of the bin in progress, if it has frames."""
-        return self.acc / self.count if self.count else None
+        return self._sample(self.acc / self.count) if self.count else None
+
+    def _sample(self, mean: np.ndarray) -> np.ndarray:
+        """Returns a bin's mean with its time on the frames' clock again."""
+        return np.concatenate([[self.t0 + mean[0]], mean[1:]])
 
 
 class _Track:

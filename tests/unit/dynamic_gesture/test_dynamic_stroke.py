@@ -43,6 +43,20 @@ def test_a_swipe_from_rest_in_the_centre_is_one_stroke_evaluated_during_and_at_i
     assert starts == {final.t_start}  # every window of a stroke starts where it started
 
 
+@pytest.mark.parametrize("origin", [1796550077.5206337, 1.7e9 + 0.123, 12345.678])
+def test_a_stroke_is_sampled_the_same_whatever_the_clocks_origin(synth, origin):
+    # A 30 Hz clock meets the 20 Hz bins every 0.1 s; stamped from an epoch origin, those
+    # frames fell on either side of the bin's end by rounding, and the samples changed.
+    traj = synth.trajectory([REST, ("move", 0.5, (180.0, 40.0, 0.0)), ("hold", 0.5)], rate=30.0)
+    frames = [(i / 30.0, p, r) for i, (_, p, r) in enumerate(traj)]
+    from_zero = synth.feed(Segmenter(), frames)
+    from_origin = synth.feed(Segmenter(), [(origin + t, p, r) for t, p, r in frames])
+    assert len(from_zero) == len(from_origin) > 2
+    for a, b in zip(from_zero, from_origin, strict=True):
+        assert np.allclose(a.obs, b.obs, atol=1e-6) and a.final == b.final
+        assert abs(b.t_end - origin - a.t_end) < 1e-5
+
+
 def reported_windows(windows, classify):
     """The windows a service reports; `classify(w)` is w's gesture probability (or a bool)."""
     def probs(w):  # one gesture, then none
@@ -133,10 +147,11 @@ def test_the_return_after_a_gesture_reported_only_mid_stroke_is_not_reported(syn
 
 
 def test_a_swipe_the_hand_slowed_in_is_one_gesture_whose_return_comes_back_over_both(synth):
-    # Up 100 mm, a slowing, on up 60 mm (two strokes), then back down 150 mm: the return of
-    # the whole swipe, not a swipe down "twice as far" as the second stroke.
-    traj = synth.trajectory([REST, ("move", 0.35, (0, 100, 0)), ("move", 0.3, (0, 60, 0)),
-                             ("hold", 0.3), ("move", 0.6, (0, -150, 0)), ("hold", 0.5)])
+    # Up 100 mm, a slowing (50 ms still), on up 60 mm (two strokes), then back down 150 mm:
+    # the return of the whole swipe, not a swipe down "twice as far" as the second stroke.
+    traj = synth.trajectory([REST, ("move", 0.35, (0, 100, 0)), ("hold", 0.05),
+                             ("move", 0.3, (0, 60, 0)), ("hold", 0.3),
+                             ("move", 0.6, (0, -150, 0)), ("hold", 0.5)])
     windows = synth.feed(Segmenter(), traj)
     ups = [w for w in finals(windows) if w.obs[-1, 1] > 0]
     assert len(ups) == 2 and ups[1].t_start - ups[0].t_end <= stroke.CONTINUE_GAP_S
