@@ -174,10 +174,10 @@ def pick_trials(trials: list[Trial], per_class: int, seed: int, others: int | No
     rng = np.random.default_rng(seed)
     out = []
     for truth in [*shrec.SWIPES.values(), "none"]:
-        pool = [t for t in trials if t.truth == truth]
-        wanted = per_class if truth != "none" or others is None else others
-        if truth == "none" and others == 0:
+        wanted = others if truth == "none" and others is not None else per_class
+        if truth == "none" and wanted == 0:
             continue
+        pool = [t for t in trials if t.truth == truth]
         if wanted <= 0:
             out += pool
         else:
@@ -758,18 +758,23 @@ def stream_goals(streams: dict) -> list[tuple]:
     recall = streams["recalled"] / streams["strokes"]
     minutes = streams["other_minutes"]
     rate = streams["false_triggers"] / max(minutes, 1e-9)
-    enough = streams["strokes"] >= GOALS["stream_swipes"]
-    judged = minutes >= GOALS["stream_minutes"]
-    return [(f"continuous streams: recall ≥ {GOALS['stream_recall']:.0%}",
-             recall >= GOALS["stream_recall"] if enough else None,
-             f"{streams['recalled']}/{streams['strokes']} = {recall:.1%}"
-             + ("" if enough else f" (under {GOALS['stream_swipes']} swipes: too few to "
-                                  "judge; play more streams)")),
-            (f"continuous streams: false triggers ≤ {GOALS['false_per_min']:g}/min",
-             rate <= GOALS["false_per_min"] if judged else None,
-             f"{streams['false_triggers']} in {minutes:.1f} min = {rate:.2f}/min"
-             + ("" if judged else f" (under {GOALS['stream_minutes']:g} min outside the "
-                                  "gestures: too few to judge; play more streams)"))]
+    return [_sampled_goal(f"continuous streams: recall ≥ {GOALS['stream_recall']:.0%}",
+                          recall >= GOALS["stream_recall"],
+                          f"{streams['recalled']}/{streams['strokes']} = {recall:.1%}",
+                          streams["strokes"] >= GOALS["stream_swipes"],
+                          f"{GOALS['stream_swipes']} swipes"),
+            _sampled_goal(f"continuous streams: false triggers ≤ {GOALS['false_per_min']:g}/min",
+                          rate <= GOALS["false_per_min"],
+                          f"{streams['false_triggers']} in {minutes:.1f} min = {rate:.2f}/min",
+                          minutes >= GOALS["stream_minutes"],
+                          f"{GOALS['stream_minutes']:g} min outside the gestures")]
+
+
+def _sampled_goal(name: str, met: bool, figure: str, enough: bool, least: str) -> tuple:
+    """Returns one goal line, left unjudged (None) when its sample is under `least`."""
+    if enough:
+        return name, met, figure
+    return name, None, f"{figure} (under {least}: too few to judge; play more streams)"
 
 
 def simulated_trials(users: int, seed: int, ranges: simdata.StyleRanges) -> list[Trial]:

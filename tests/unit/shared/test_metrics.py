@@ -30,6 +30,6 @@ def test_the_interval_draws_whole_people_and_holds_the_figure():
 
 def test_goals_are_printed_passed_missed_or_not_measured():
     text = format_goals([("a ≥ 95 %", True, "96 %"), ("b ≤ 1/min", False, "2/min"),
-                                 ("c", None, "skipped")])
+                         ("c", None, "skipped")])
     assert text.splitlines() == ["  PASS  a ≥ 95 %: 96 %", "  MISS  b ≤ 1/min: 2/min",
                                  "  ----  c: skipped"]
