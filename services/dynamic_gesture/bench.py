@@ -32,7 +32,12 @@
    compares the simulated users' swipe habits with theirs (``--plot FIG`` draws them).
    ``--live-sim N`` plays N held-out simulated users the same way
    (`realbench.simulated_trials`: each dynamic gesture once per appearance of the hand,
-   rotate included), to score the episode summary on them too.
+   rotate included), to score the episode summary on them too. ``--replay-sim N`` replays
+   the same trials of many more users offline through the service's own logic (segmenter,
+   return filter, library: `replay_trial`), which answers trial by trial as the live services
+   do, in a fraction of real time: a synthetic figure is judged over
+   `realbench.GOALS["synthetic_trials"]` trials at least (a draw of 16 users moves it by
+   several points).
 
 Every live run and the simulated streams end with issue 14's goals, judged on the figures just
 measured (`realbench.live_goals`, `realbench.stream_goals`).
@@ -47,6 +52,7 @@ Examples::
     cbgo bench dynamic --real ~/.cache/cbgo/leapmotion-left --per-class 0   # real left hands
     cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec --plot /tmp/fig
     cbgo bench dynamic --live-sim 16           # simulated users through live services
+    cbgo bench dynamic --replay-sim 100        # 500 such trials, offline, in about 3 min
     cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
     cbgo bench dynamic --ranges train          # held-out users inside the training range
 """
@@ -93,6 +99,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "perform each dynamic gesture once per appearance of the hand, "
                              "played like --real through live dynamic-gesture and episode "
                              "services in real time [0: off]")
+    parser.add_argument("--replay-sim", type=int, default=0, metavar="USERS",
+                        help="instead of the above: the --live-sim trials of USERS simulated "
+                             "users replayed offline through the service's segmenter, return "
+                             "filter and library (--templates), as the live services answer "
+                             "them; no episode summary [0: off]")
     parser.add_argument("--latency", action=argparse.BooleanOptionalAction, default=True,
                         help="measure latency through real processes [on]")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
@@ -344,6 +355,44 @@ def run_real_folds(args: argparse.Namespace) -> int:
     return realbench.report_live(merged, args.json)
 
 
+def replay_trial(classifier: Classifier, trial: realbench.Trial, config: SegmenterConfig
+                 ) -> dict:
+    """Returns what the live services' `gestures/dynamic` would answer for one trial.
+
+    The trial's frames go through the service's segmenter, then the hand leaves; its windows
+    through the return filter and the library (`train.trial_answers`), as the service decides
+    what it publishes. ``dynamic`` is the most probable reported gesture, ``first`` the first,
+    ``finals`` the most probable among final windows (``nothing`` where none has p ≥
+    `stroke.GESTURE_P`), as `realbench.run_trials` scores the live messages.
+    """
+    segmenter = Segmenter(config)
+    frames = trial.frames()
+    windows = [w for t, hands in frames for w in segmenter.update(t, hands)]
+    windows += segmenter.update(frames[-1][0] + 1.0, [])  # the hand leaves the field
+    answers = train.trial_answers(classifier, windows, config.return_s)
+    return {"truth": trial.truth, "person": trial.person, "gesture": trial.gesture,
+            "dynamic": answers["all"], "first": answers["first"], "finals": answers["finals"]}
+
+
+def run_replay_sim(args: argparse.Namespace) -> int:
+    """``--replay-sim USERS``: the ``--live-sim`` trials of many users, replayed offline."""
+    classifier = Library(args.templates, None).load().classifier()
+    config = SegmenterConfig()
+    ranges = simdata.RANGES[args.ranges]
+    rows = []
+    t0 = time.perf_counter()
+    for k in range(args.replay_sim):  # one user at a time: the same trials as --live-sim's
+        rows += [replay_trial(classifier, trial, config)
+                 for trial in realbench.simulated_trials(1, args.seed + k, ranges)]
+        if (k + 1) % 10 == 0 or k + 1 == args.replay_sim:
+            print(f"  {k + 1}/{args.replay_sim} users, {len(rows)} trials, "
+                  f"{time.perf_counter() - t0:.0f} s", flush=True)
+    result = {"users": args.replay_sim, "ranges": args.ranges, "trials": rows}
+    print(f"\n{len(rows)} trials of {args.replay_sim} simulated {args.ranges} users, replayed "
+          f"offline through the service's segmenter, return filter and library")
+    return realbench.report_replay(result, args.json)
+
+
 def run(args: argparse.Namespace) -> int:
     """Runs the three parts and prints their figures (or the real-data bench)."""
     if args.plot is not None and args.realism is None:
@@ -361,6 +410,8 @@ def run(args: argparse.Namespace) -> int:
         result = realbench.play_live(trials, [], "simulated",
                                      f"{args.live_sim} simulated {args.ranges} users")
         return realbench.report_live(result, args.json, synthetic=True)
+    if args.replay_sim > 0:
+        return run_replay_sim(args)
     if args.realism is not None:
         config = SegmenterConfig()
         real = realbench.real_habits(args.realism, "train", config)

@@ -298,14 +298,26 @@ def test_the_live_report_judges_issue_14s_goals_and_a_short_stream_sample_not_at
     worse = realbench.stream_goals({**stream, "strokes": 60, "recalled": 50,
                                     "false_triggers": 13, "other_minutes": 12.0})
     assert [met for _, met, _ in worse] == [False, False]
-    synthetic = realbench.live_goals({"dynamic": {"balanced_accuracy": 0.96, "interval": None,
-                                                  "people": 0},
-                                      "summary": {"balanced_accuracy": 0.96, "interval": None,
-                                                  "people": 0}},
-                                     {"strokes": 0}, synthetic=True)
+    blocks = {field: {"balanced_accuracy": 0.96, "interval": None, "people": 0}
+              for field in ("dynamic", "summary")}
+    many = [{"truth": "swipe_up"}] * realbench.GOALS["synthetic_trials"]
+    synthetic = realbench.live_goals({**blocks, "trials": many}, {"strokes": 0}, synthetic=True)
     assert synthetic[0][:2] == ("synthetic strokes, rotate included: gestures/dynamic ≥ 97% "
                                 "balanced", False)
     assert synthetic[2] == ("continuous streams", None, "none played")
+
+
+def test_synthetic_strokes_are_judged_over_enough_trials_only():
+    blocks = {field: {"balanced_accuracy": 0.99, "interval": None, "people": 0}
+              for field in ("dynamic", "summary")}
+    least = realbench.GOALS["synthetic_trials"]
+    few = [{"truth": "swipe_up"}] * 80 + [{"truth": "none"}] * least  # others do not count
+    goals = realbench.live_goals({**blocks, "trials": few}, {"strokes": 0}, synthetic=True)
+    assert [met for _, met, _ in goals[:2]] == [None, None]  # 80 trials: a draw of 16 users
+    assert goals[0][2].startswith("99.0%, 80 trials (under 250 trials: too few to judge")
+    enough = [{"truth": "swipe_up"}] * least
+    goals = realbench.live_goals({**blocks, "trials": enough}, {"strokes": 0}, synthetic=True)
+    assert [met for _, met, _ in goals[:2]] == [True, True]
 
 
 def test_the_live_score_reads_the_field_asked_for():

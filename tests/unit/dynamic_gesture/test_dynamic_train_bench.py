@@ -1,5 +1,6 @@
 """Training and benchmark plumbing on a tiny simulated data set (the real runs are CLI verbs)."""
 
+import argparse
 import json
 from dataclasses import replace
 
@@ -91,3 +92,23 @@ def test_the_held_out_peoples_streams_are_judged_against_issue_14s_goals(capsys)
     out = capsys.readouterr().out
     assert "  PASS  continuous streams: recall ≥ 90%: 95/100 = 95.0%" in out
     assert "  MISS  continuous streams: false triggers ≤ 1/min: 12 in 10.0 min = 1.20/min" in out
+
+
+def test_replayed_simulated_trials_are_answered_as_the_service_answers(capsys, tmp_path):
+    parser = argparse.ArgumentParser()
+    bench.add_arguments(parser)
+    out = tmp_path / "replay.json"
+    args = parser.parse_args(["--replay-sim", "1", "--ranges", "train", "--json", str(out)])
+    assert bench.run(args) == 0
+    printed = capsys.readouterr().out
+    assert "5 trials of 1 simulated train users, replayed offline" in printed
+    assert "gestures/dynamic, final windows only" in printed
+    assert "----  synthetic strokes, rotate included: gestures/dynamic ≥ 97% balanced" in printed
+    result = json.loads(out.read_text())
+    trials = result["trials"]
+    assert sorted(t["truth"] for t in trials) == sorted(DYNAMIC_GESTURES)
+    # this user's five gestures, each from anywhere in the field with its preparation and
+    # return, are all answered right by the shipped library, by any rule
+    assert all(t["dynamic"] == t["finals"] == t["first"] == t["truth"] for t in trials)
+    assert result["dynamic"]["balanced_accuracy"] == 1.0
+
