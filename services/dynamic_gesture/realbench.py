@@ -102,7 +102,7 @@ of the episode summary's g; continuous streams' recall and false triggers per mi
 streams' figures are judged only over `stream_swipes` swipes and `stream_minutes` outside the
 gestures at least: a few streams move them by half between draws. Synthetic strokes are judged
 only over `synthetic_trials` trials (50 users) at least: users are drawn from wide ranges of
-style, and 16 users' 80 trials (``--live-sim 16``) read 94 to 99 % by their draw (stop 48,
+style, and 16 users' 80 trials (``--live-sim 16``) read about 91 to 99 % by their draw (stop 48,
 `cbgo bench dynamic --replay-sim 100` split in blocks of 16 users). A real set is judged on
 the trials it holds."""
 
