@@ -365,10 +365,7 @@ def replay_trial(classifier: Classifier, trial: realbench.Trial, config: Segment
     ``finals`` the most probable among final windows (``nothing`` where none has p ≥
     `stroke.GESTURE_P`), as `realbench.run_trials` scores the live messages.
     """
-    segmenter = Segmenter(config)
-    frames = trial.frames()
-    windows = [w for t, hands in frames for w in segmenter.update(t, hands)]
-    windows += segmenter.update(frames[-1][0] + 1.0, [])  # the hand leaves the field
+    windows = shrec.recording_windows(trial.frames(), Segmenter(config))
     answers = train.trial_answers(classifier, windows, config.return_s)
     return {"truth": trial.truth, "person": trial.person, "gesture": trial.gesture,
             "dynamic": answers["all"], "first": answers["first"], "finals": answers["finals"]}

@@ -253,11 +253,13 @@ NOT_TRAINED = COMPOSITE | {5, 6}
 
 def segment(seq: Sequence, segmenter: Segmenter) -> list:
     """Returns the segmenter's windows of one sequence, the hand lost at its end."""
-    out = []
-    messages = frames(seq)
-    for msg in messages:
-        out += segmenter.update(msg["ts"], msg["hands"])
-    return out + segmenter.update(messages[-1]["ts"] + 1.0, [])
+    return recording_windows([(m["ts"], m["hands"]) for m in frames(seq)], segmenter)
+
+
+def recording_windows(frames: list[tuple], segmenter: Segmenter) -> list:
+    """Returns the segmenter's windows of (time, hands) frames, the hand lost at the end."""
+    out = [w for t, hands in frames for w in segmenter.update(t, hands)]
+    return out + segmenter.update(frames[-1][0] + 1.0, [])
 
 
 def sequence_windows(sequences: list[Sequence], config=None) -> list[tuple]:

@@ -111,4 +111,3 @@ def test_replayed_simulated_trials_are_answered_as_the_service_answers(capsys, t
     # return, are all answered right by the shipped library, by any rule
     assert all(t["dynamic"] == t["finals"] == t["first"] == t["truth"] for t in trials)
     assert result["dynamic"]["balanced_accuracy"] == 1.0
-
