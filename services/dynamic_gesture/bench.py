@@ -367,8 +367,7 @@ def replay_trial(classifier: Classifier, trial: realbench.Trial, config: Segment
     """
     windows = shrec.recording_windows(trial.frames(), Segmenter(config))
     answers = train.trial_answers(classifier, windows, config.return_s)
-    return {"truth": trial.truth, "person": trial.person, "gesture": trial.gesture,
-            "dynamic": answers["all"], "first": answers["first"], "finals": answers["finals"]}
+    return trial.row(dynamic=answers["all"], first=answers["first"], finals=answers["finals"])
 
 
 def run_replay_sim(args: argparse.Namespace) -> int:
@@ -414,6 +413,7 @@ def run(args: argparse.Namespace) -> int:
         real = realbench.real_habits(args.realism, "train", config)
         simulated = realbench.simulated_habits(args.users, args.seed, config)
         table = realbench.print_realism(real, simulated)
+        table["spread"] = realbench.print_spread(real, simulated)
         if args.json:
             args.json.write_text(json.dumps(table, indent=1))
         if args.plot:

@@ -116,12 +116,19 @@ class Trial:
         gesture: the data set's name of the gesture.
         person: who performed it.
         recording: a `shrec.Sequence` or a `leapjs.Recording`.
+        style: a simulated user's stroke size and speed (`simdata.StyleRanges.quarter`).
     """
 
     truth: str
     gesture: str
     person: str
     recording: object
+    style: str = ""
+
+    def row(self, **answers) -> dict:
+        """Returns a scored row: who did what (and in which style), and the answers."""
+        return {"truth": self.truth, "person": self.person, "gesture": self.gesture,
+                **({"style": self.style} if self.style else {}), **answers}
 
     def frames(self) -> list[tuple[float, list[dict]]]:
         """Returns (time from the first frame, hands) per recorded frame."""
@@ -345,10 +352,9 @@ def run_trials(player: _Player, trials: list[Trial], device: str, log=print) -> 
             summary = player.summaries[n_sum] if len(player.summaries) > n_sum else {}
         reported = _reported(messages)
         dynamic = max(reported, key=lambda r: r[1])[0] if reported else NOTHING
-        rows.append({"truth": trial.truth, "person": trial.person, "gesture": trial.gesture,
-                     "dynamic": dynamic, "first": reported[0][0] if reported else NOTHING,
-                     "summary": _summary_gesture(summary),
-                     "reports": [r[0] for r in reported]})
+        rows.append(trial.row(dynamic=dynamic, first=reported[0][0] if reported else NOTHING,
+                              summary=_summary_gesture(summary),
+                              reports=[r[0] for r in reported]))
         log(f"  [{i + 1}/{len(trials)}] {trial.gesture} (person {trial.person}): dynamic "
             f"{dynamic}, summary {rows[-1]['summary']}")
     return {"trials": rows}
@@ -715,6 +721,8 @@ def report_live(result: dict, json_path: Path | None, log=print, synthetic: bool
     for field in ("dynamic", "first", "summary"):
         result[field] = score(result["trials"], field)
         _print_score(field, result[field])
+    if synthetic:
+        result["by_style"] = print_by_style(result["trials"], "dynamic")
     total = stream_totals(result["streams"])
     if total["strokes"]:
         log(f"\ncontinuous streams ({len(result['streams'])}, hand never leaves): "
@@ -810,7 +818,7 @@ def simulated_trials(users: int, seed: int, ranges: simdata.StyleRanges) -> list
     trials = []
     for user_seed in range(seed, seed + users):
         scenario = simdata.user_scenario(user_seed, ranges, 1, statics=False)
-        person = next(iter(scenario.users))
+        person, style = next(iter(scenario.users.items()))
         steps = scenario.episodes[0].gestures
         idle = [s for s in steps if s.gesture in IDLE_MOTIONS]
         for i, step in enumerate(s for s in steps if s.gesture in DYNAMIC_GESTURES):
@@ -821,7 +829,7 @@ def simulated_trials(users: int, seed: int, ranges: simdata.StyleRanges) -> list
             frames = [(f.t, f.hands) for f in SimulatedUser(one, 60.0).frames() if f.hands]
             t0 = frames[0][0]
             trials.append(Trial(str(step.gesture), str(step.gesture), person,
-                                [(t - t0, hands) for t, hands in frames]))
+                                [(t - t0, hands) for t, hands in frames], ranges.quarter(style)))
     return trials
 
 
@@ -830,12 +838,33 @@ def report_replay(result: dict, json_path: Path | None, log=print) -> int:
     for field in ("dynamic", "finals", "first"):
         result[field] = score(result["trials"], field)
         _print_score(field, result[field])
+    result["by_style"] = print_by_style(result["trials"], "dynamic")
     result["goals"] = trial_goals(result, True, ("dynamic",))
     log("\ngoals (issue 14; the service's logic offline, as it answers live; the episode "
         "summary needs --live-sim):\n" + metrics.format_goals(result["goals"]))
     if json_path:
         json_path.write_text(json.dumps(result, indent=1))
     return 0
+
+
+def print_by_style(rows: list[dict], field: str) -> dict:
+    """Prints and returns the share of simulated trials answered right per user style.
+
+    A style is the user's stroke size and speed against the middle of the drawn ranges
+    (`simdata.StyleRanges.quarter`): the held-out range's smallest, slowest users swipe as
+    slowly as people re-position their hand, and one overall figure would hide that.
+    """
+    styles: dict[str, list[int]] = {}
+    for r in rows:
+        if r.get("style") and r["truth"] != "none":
+            right = styles.setdefault(r["style"], [0, 0])
+            right[0] += r[field] == r["truth"]
+            right[1] += 1
+    if styles:
+        print("by the users' stroke size / speed (against the middle of their ranges): "
+              + ", ".join(f"{name} {ok}/{n} = {ok / n:.1%}"
+                          for name, (ok, n) in sorted(styles.items())))
+    return {name: {"right": ok, "trials": n} for name, (ok, n) in styles.items()}
 
 
 def _print_score(field: str, block: dict) -> None:
@@ -941,8 +970,9 @@ def real_habits(root: Path, split: str, config) -> list[dict]:
         segmenter = Segmenter(config)
         windows = shrec.segment(seq, segmenter)
         palms = seq.joints()[:, 1] * 1000.0 + shrec.DEFAULT_OFFSET_MM
-        out += habits(windows, shrec.label_windows(seq.name, windows), np.median(palms, 0),
+        rows = habits(windows, shrec.label_windows(seq.name, windows), np.median(palms, 0),
                       segmenter.config.roll_scale_mm_per_rad, (len(palms) - 1) / shrec.RATE_HZ)
+        out += [row | {"person": str(seq.person)} for row in rows]
     return out
 
 
@@ -958,8 +988,9 @@ def simulated_habits(users: int, seed: int, config) -> list[dict]:
         windows = [w for f in frames for w in segmenter.update(f.t, f.hands)]
         times = np.array([f.t for f in frames])
         truths = [simdata.truth_of(w, times, [f.label for f in frames]) for w in windows]
-        out += habits(windows, truths, CENTRE_MM, segmenter.config.roll_scale_mm_per_rad,
+        rows = habits(windows, truths, CENTRE_MM, segmenter.config.roll_scale_mm_per_rad,
                       float(times[-1]))
+        out += [row | {"person": next(iter(scenario.users))} for row in rows]
     return out
 
 
@@ -1002,6 +1033,39 @@ def print_realism(real: list[dict], simulated: list[dict]) -> dict:
             print(f"{name:<20}" + "".join(f"{m:>10.2f} [{lo:6.2f},{hi:7.2f}] n {n:<3.0f}"
                                           for m, lo, hi, n in cells))
     print(f"{'strokes':<20}{len(real):>31}{len(simulated):>31}")
+    return table
+
+
+SPREAD_HABITS = ("length_mm", "duration_s", "peak_mm_s")
+"""Habits whose spread is split between people and within a person (`person_spread`)."""
+
+
+def person_spread(rows: list[dict], name: str) -> tuple[float, float]:
+    """Returns how much a habit differs between people and from one swipe to the next.
+
+    Both as standard deviations of its logarithm: between people, of each person's mean; within
+    a person, pooled over people with two swipes or more. A simulated population can match the
+    real one's overall spread with users who each swipe alike but differ from each other.
+    """
+    people: dict[str, list[float]] = {}
+    for r in rows:
+        if np.isfinite(r[name]) and r[name] > 0:
+            people.setdefault(r.get("person", ""), []).append(float(np.log(r[name])))
+    means = [np.mean(v) for v in people.values()]
+    within = [np.var(v) for v in people.values() if len(v) > 1]
+    return (float(np.std(means)) if len(means) > 1 else np.nan,
+            float(np.sqrt(np.mean(within))) if within else np.nan)
+
+
+def print_spread(real: list[dict], simulated: list[dict]) -> dict:
+    """Prints `person_spread` of the `SPREAD_HABITS`, real beside simulated; returns them."""
+    print(f"\n{'SD of the log':<20}{'real: between people, within':>31}{'simulated':>31}")
+    table = {}
+    for name in SPREAD_HABITS:
+        table[name] = {"real": person_spread(real, name),
+                       "simulated": person_spread(simulated, name)}
+        print(f"{name:<20}" + "".join(f"{between:>21.3f}, {within:<8.3f}"
+                                      for between, within in table[name].values()))
     return table
 
 

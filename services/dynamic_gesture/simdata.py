@@ -70,6 +70,19 @@ class StyleRanges:
         angle = pick(self.angle_deg)
         return style, (angle * 0.93, angle * 1.07)
 
+    def quarter(self, style: UserStyle) -> str:
+        """Returns "small" or "large", "slow" or "fast": a user's stroke size and speed.
+
+        Each against the middle of the span these ranges draw it from. The users of the
+        extremes fail for different reasons, so the benches score them apart.
+        """
+        def half(value: float, intervals: tuple[Interval, ...], low: str, high: str) -> str:
+            middle = (min(lo for lo, _ in intervals) + max(hi for _, hi in intervals)) / 2
+            return low if value < middle else high
+
+        return (f"{half(style.amplitude, self.amplitude, 'small', 'large')}/"
+                f"{half(style.speed, self.speed, 'slow', 'fast')}")
+
 
 TRAIN = StyleRanges(speed=((0.85, 1.6),), amplitude=((0.55, 1.8),), curvature=((0.0, 0.3),),
                     tremor_mm=((0.3, 1.2),), hand_scale=((0.85, 1.15),),

@@ -407,6 +407,22 @@ def test_whether_a_swipe_was_returned_is_unknown_where_its_recording_ends_too_so
     assert held["returned"] == 0.0  # long enough to have seen a return: there was none
 
 
+def test_a_habits_spread_is_split_between_people_and_within_a_person(capsys):
+    # person a swipes 100 and 400 mm, person b 200 and 200: in logs, a's mean is log 200, b's
+    # too (nothing between them), a's swipes lie log 2 from their mean, b's not at all
+    rows = [{"person": p, "length_mm": v, "duration_s": 0.5, "peak_mm_s": np.nan}
+            for p, v in (("a", 100.0), ("a", 400.0), ("b", 200.0), ("b", 200.0))]
+    between, within = realbench.person_spread(rows, "length_mm")
+    assert between == pytest.approx(0.0, abs=1e-12)
+    assert within == pytest.approx(np.sqrt((np.log(2) ** 2 + 0.0) / 2))
+    assert all(np.isnan(realbench.person_spread(rows, "peak_mm_s")))  # nothing known
+    one = [dict(r, person="a") for r in rows]  # one person: no spread between people
+    assert np.isnan(realbench.person_spread(one, "length_mm")[0])
+    table = realbench.print_spread(rows, one)
+    assert table["duration_s"]["real"] == (0.0, 0.0)
+    assert "between people, within" in capsys.readouterr().out
+
+
 def test_the_realism_table_gives_a_yes_or_no_habit_as_a_share_and_draws_the_habits(tmp_path,
                                                                                    capsys):
     rows = [dict.fromkeys(realbench.HABITS, float(k)) | {"returned": r}

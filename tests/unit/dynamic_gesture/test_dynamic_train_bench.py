@@ -10,6 +10,7 @@ import pytest
 from cbgo.services.dynamic_gesture import bench, simdata, train
 from cbgo.services.dynamic_gesture.classifier import MIRROR
 from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, read_default, save_default
+from cbgo.simuser.scenario import UserStyle
 from cbgo.wire import DYNAMIC_GESTURES
 
 
@@ -111,3 +112,17 @@ def test_replayed_simulated_trials_are_answered_as_the_service_answers(capsys, t
     # return, are all answered right by the shipped library, by any rule
     assert all(t["dynamic"] == t["finals"] == t["first"] == t["truth"] for t in trials)
     assert result["dynamic"]["balanced_accuracy"] == 1.0
+    # scored by the user's style too: one user, one style, its five trials
+    (style,) = {t["style"] for t in trials}
+    assert result["by_style"] == {style: {"right": 5, "trials": 5}}
+    assert f"{style} 5/5 = 100.0%" in printed
+
+
+def test_a_users_style_is_named_by_the_halves_of_its_ranges():
+    ranges = simdata.HELD_OUT  # amplitude 0.45-0.55 or 1.8-1.95, speed 0.7-0.85 or 1.6-1.9
+    assert ranges.quarter(UserStyle(amplitude=0.5, speed=0.75)) == "small/slow"
+    assert ranges.quarter(UserStyle(amplitude=1.9, speed=0.75)) == "large/slow"
+    assert ranges.quarter(UserStyle(amplitude=0.5, speed=1.7)) == "small/fast"
+    # one interval: split at its middle (training amplitude 0.55-1.8, speed 0.85-1.6)
+    assert simdata.TRAIN.quarter(UserStyle(amplitude=1.0, speed=1.3)) == "small/fast"
+    assert simdata.TRAIN.quarter(UserStyle(amplitude=1.2, speed=1.2)) == "large/slow"
