@@ -50,8 +50,8 @@ class UserStyle:
 
     hand_scale: float = 1.0     # hand size relative to an average adult hand
     side: str = "right"         # which hand gestures
-    speed: float = 1.0          # >1 moves faster
-    amplitude: float = 1.0      # size of strokes relative to 180 mm
+    speed: float = 1.0          # >1 moves faster (a swipe takes about user.SWIPE_S / speed)
+    amplitude: float = 1.0      # size of strokes relative to user.STROKE_MM (160 mm)
     curvature: float = 0.08     # sideways bow of strokes, fraction of their length
     tremor_mm: float = 0.8      # physiological tremor amplitude (RMS, mm)
     pose_variation: float = 1.0  # spread of static poses relative to the calibrated spread

@@ -44,15 +44,17 @@ SWIPE_DIRECTIONS = {
 # 10th and 90th percentiles). Real people stop short of where they started or overshoot it.
 RETURN_REACH = 0.98
 RETURN_REACH_LOG_SD = 0.33
-# How long a swipe of a user of speed 1 takes (log-normal around it, one swipe to the next), fitted
-# to the SHREC'17 train split's swipes by the speed the service reads (`cbgo bench dynamic
+RETURN_REACH_RANGE = (0.4, 1.8)
+
+# How long a swipe of a user of speed 1 takes (log-normal around it, one swipe to the next),
+# fitted to the SHREC'17 train split's swipes by the speed the service reads (`cbgo bench dynamic
 # --realism DIR`, stop 49): peak speed 478 [257, 930] mm/s against real 474 [283, 734] (median
 # [10th, 90th percentile]). Real swipes still last longer (0.80 s against 0.55): their paths
 # wander 1.5 times their length, simulated ones 1.2. Until stop 48 a swipe took 0.45 s,
 # 0.9-1.1 times that: half as long as real ones, 1.6 times as fast.
 SWIPE_S = 0.70
 SWIPE_S_LOG_SD = 0.25
-RETURN_REACH_RANGE = (0.4, 1.8)
+
 STROKE_BOX = (np.array([-190.0, 100.0, -150.0]), np.array([190.0, 470.0, 150.0]))
 
 
