@@ -52,8 +52,18 @@ RETURN_REACH_RANGE = (0.4, 1.8)
 # [10th, 90th percentile]). Real swipes still last longer (0.80 s against 0.55): their paths
 # wander 1.5 times their length, simulated ones 1.2. Until stop 48 a swipe took 0.45 s,
 # 0.9-1.1 times that: half as long as real ones, 1.6 times as fast.
-SWIPE_S = 0.70
+SWIPE_S = 0.78
 SWIPE_S_LOG_SD = 0.25
+
+# How much one person's swipes differ in length, one to the next: log-normal around the user's
+# amplitude, fitted to the SHREC'17 train split (`cbgo bench dynamic --realism DIR`: the SD of the
+# log length within a person is 0.38, between people 0.20). A longer swipe takes a little longer
+# (duration ~ length ** SWIPE_S_LENGTH_EXPONENT within a person). Until stop 49 a user's swipes
+# were 0.9-1.1 times their amplitude, and people differed twice as much as real ones.
+SWIPE_LENGTH_LOG_SD = 0.42
+SWIPE_LENGTH_RANGE = (0.45, 2.2)
+SWIPE_S_LENGTH_EXPONENT = 0.3
+SWIPE_MM_MAX = 330.0  # the field's width less a margin: longer swipes would leave it
 
 STROKE_BOX = (np.array([-190.0, 100.0, -150.0]), np.array([190.0, 470.0, 150.0]))
 
@@ -217,7 +227,8 @@ class SimulatedUser:
             builder.roll_to(0.0, 1.0 / style.speed, "return")
             return
         direction = SWIPE_DIRECTIONS[step.gesture]
-        length = STROKE_MM * style.amplitude * rng.uniform(0.9, 1.1)
+        spread = float(np.clip(np.exp(rng.normal(0.0, SWIPE_LENGTH_LOG_SD)), *SWIPE_LENGTH_RANGE))
+        length = min(STROKE_MM * style.amplitude * spread, SWIPE_MM_MAX)
         sideways = np.array([direction[1], -direction[0], 0.0])
         bow = bow_sign * style.curvature * length * sideways
         # The swipe crosses the middle of the field: it starts a part of its length before.
@@ -236,7 +247,8 @@ class SimulatedUser:
         medial = horizontal and (direction[0] < 0) == (style.side == "right")
         roll = np.radians(rng.normal(-style.medial_roll_deg if medial else 0.0,
                                      style.swipe_roll_deg * (1.0 if horizontal else 0.5)))
-        seconds = SWIPE_S / style.speed * float(np.exp(rng.normal(0.0, SWIPE_S_LOG_SD)))
+        seconds = (SWIPE_S / style.speed * spread ** SWIPE_S_LENGTH_EXPONENT
+                   * float(np.exp(rng.normal(0.0, SWIPE_S_LOG_SD))))
         end = start + direction * length
         builder.move_to(end, seconds, "stroke", step.gesture, bow=bow, roll_to=roll)
         builder.hold(0.15 / style.speed * rng.uniform(0.0, 1.0), "stroke", step.gesture)
