@@ -52,6 +52,7 @@ class StyleRanges:
     swipe_roll_deg: tuple[Interval, ...] = ((15.0, 60.0),)
     medial_roll_deg: tuple[Interval, ...] = ((30.0, 70.0),)
     return_slowdown: tuple[Interval, ...] = ((0.6, 1.4),)
+    length_spread: tuple[Interval, ...] = ((0.3, 0.55),)
 
     def draw(self, rng: np.random.Generator, name: str) -> tuple[UserStyle, tuple[float, float]]:
         """Returns a user style and the (low, high) roll angles of its rotate strokes."""
@@ -66,7 +67,8 @@ class StyleRanges:
                           stroke_lead=pick(self.stroke_lead), rest_s=pick(self.rest_s),
                           swipe_roll_deg=pick(self.swipe_roll_deg),
                           medial_roll_deg=pick(self.medial_roll_deg),
-                          return_slowdown=pick(self.return_slowdown))
+                          return_slowdown=pick(self.return_slowdown),
+                          length_spread=pick(self.length_spread))
         angle = pick(self.angle_deg)
         return style, (angle * 0.93, angle * 1.07)
 

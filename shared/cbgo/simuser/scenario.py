@@ -68,6 +68,8 @@ class UserStyle:
     medial_roll_deg: float = 50.0  # mean palm roll (thumb side down) swiping across the body
     return_slowdown: float = 1.0  # the return's duration over the stroke's, per share of its
     # length it comes back (real returns are about as fast as their swipe: 0.91 of its speed)
+    length_spread: float = 0.42  # SD of the log of a swipe's length around the amplitude: one
+    # real person's swipes differ in length by 0.38 (pooled over the SHREC'17 train split)
 
     def __post_init__(self):
         if self.side not in ("left", "right"):
@@ -77,7 +79,7 @@ class UserStyle:
                 raise ConfigError(f"{name}={getattr(self, name)} is out of range")
         for name in ("curvature", "tremor_mm", "pose_variation", "gaze_noise_m", "stroke_lead",
                      "stroke_spread_mm", "rest_s", "swipe_roll_deg", "medial_roll_deg",
-                     "return_slowdown"):
+                     "return_slowdown", "length_spread"):
             if float(getattr(self, name)) < 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
 

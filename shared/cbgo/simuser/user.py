@@ -55,12 +55,12 @@ RETURN_REACH_RANGE = (0.4, 1.8)
 SWIPE_S = 0.78
 SWIPE_S_LOG_SD = 0.25
 
-# How much one person's swipes differ in length, one to the next: log-normal around the user's
-# amplitude, fitted to the SHREC'17 train split (`cbgo bench dynamic --realism DIR`: the SD of the
-# log length within a person is 0.38, between people 0.20). A longer swipe takes a little longer
-# (duration ~ length ** SWIPE_S_LENGTH_EXPONENT within a person). Until stop 49 a user's swipes
-# were 0.9-1.1 times their amplitude, and people differed twice as much as real ones.
-SWIPE_LENGTH_LOG_SD = 0.42
+# How much a swipe's length differs from the user's amplitude: log-normal with SD
+# `UserStyle.length_spread`, clipped to this range, fitted with the users' amplitudes to the
+# SHREC'17 train split (`cbgo bench dynamic --realism DIR`: SD of the log length within a
+# person 0.38, between people 0.20). A longer swipe takes a little longer (its duration grows as
+# its length ** SWIPE_S_LENGTH_EXPONENT). Until stop 49 a user's swipes were 0.9-1.1 times
+# their amplitude, and the simulated people differed twice as much as real ones.
 SWIPE_LENGTH_RANGE = (0.45, 2.2)
 SWIPE_S_LENGTH_EXPONENT = 0.3
 SWIPE_MM_MAX = 330.0  # the field's width less a margin: longer swipes would leave it
@@ -227,7 +227,8 @@ class SimulatedUser:
             builder.roll_to(0.0, 1.0 / style.speed, "return")
             return
         direction = SWIPE_DIRECTIONS[step.gesture]
-        spread = float(np.clip(np.exp(rng.normal(0.0, SWIPE_LENGTH_LOG_SD)), *SWIPE_LENGTH_RANGE))
+        spread = float(np.clip(np.exp(rng.normal(0.0, style.length_spread)),
+                               *SWIPE_LENGTH_RANGE))
         length = min(STROKE_MM * style.amplitude * spread, SWIPE_MM_MAX)
         sideways = np.array([direction[1], -direction[0], 0.0])
         bow = bow_sign * style.curvature * length * sideways

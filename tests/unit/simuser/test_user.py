@@ -41,8 +41,9 @@ def test_a_pointing_hand_aims_its_index_finger_at_the_gaze_target(side, target):
     assert np.median(error) < 0.07
 
 
-def test_returns_come_back_a_varying_share_of_their_swipe_as_real_people_do(monkeypatch):
-    moves = []  # (phase, from, to) of every move the simulated user makes
+def recorded_moves(monkeypatch, style: dict, gestures: list) -> list:
+    """Returns (phase, from, to) of every move a simulated user of `style` makes."""
+    moves = []
     move_to = TimelineBuilder.move_to
 
     def recorded(builder, target, seconds, phase, *args, **kwargs):
@@ -50,10 +51,15 @@ def test_returns_come_back_a_varying_share_of_their_swipe_as_real_people_do(monk
         return move_to(builder, target, seconds, phase, *args, **kwargs)
 
     monkeypatch.setattr(TimelineBuilder, "move_to", recorded)
-    scenario = parse_scenario({"users": {"u": {}},
-                               "episodes": [{"user": "u", "gestures": ["swipe_right"] * 60}]})
+    scenario = parse_scenario({"users": {"u": style},
+                               "episodes": [{"user": "u", "gestures": gestures}]})
     user = SimulatedUser(scenario, 60.0)
     user.timeline(scenario.episodes[0], scenario.users["u"], np.random.default_rng(3))
+    return moves
+
+
+def test_returns_come_back_a_varying_share_of_their_swipe_as_real_people_do(monkeypatch):
+    moves = recorded_moves(monkeypatch, {}, ["swipe_right"] * 60)
     reaches = np.array([(swipe[2][0] - back[2][0]) / (swipe[2][0] - swipe[1][0])
                         for swipe, back in zip(moves, moves[1:], strict=False)
                         if swipe[0] == "stroke"])
@@ -63,3 +69,24 @@ def test_returns_come_back_a_varying_share_of_their_swipe_as_real_people_do(monk
     # Fitted to SHREC'17's real returns, 0.98 [0.58, 1.42]: some stop short, some overshoot.
     assert 0.8 < np.median(reaches) < 1.15
     assert np.mean(reaches < 0.8) > 0.1 and np.mean(reaches > 1.15) > 0.1
+
+
+def swipe_lengths(moves) -> np.ndarray:
+    return np.array([np.linalg.norm(to - start) for phase, start, to in moves
+                     if phase == "stroke"])
+
+
+def test_one_persons_swipes_differ_in_length_as_a_real_persons_do(monkeypatch):
+    lengths = swipe_lengths(recorded_moves(monkeypatch, {"amplitude": 1.2}, ["swipe_up"] * 80))
+    assert len(lengths) == 80
+    low, high = user_module.SWIPE_LENGTH_RANGE
+    nominal = user_module.STROKE_MM * 1.2
+    assert np.all((lengths >= nominal * low - 1e-6) & (lengths <= nominal * high + 1e-6))
+    # The SHREC'17 train split: SD of the log length within a person 0.38 (default 0.42).
+    assert 0.3 < np.std(np.log(lengths)) < 0.5
+    assert 0.85 < np.median(lengths) / nominal < 1.15
+
+
+def test_a_user_without_length_spread_swipes_the_same_length_each_time(monkeypatch):
+    moves = recorded_moves(monkeypatch, {"length_spread": 0}, ["swipe_left"] * 10)
+    np.testing.assert_allclose(swipe_lengths(moves), user_module.STROKE_MM)
