@@ -86,10 +86,10 @@ class StyleRanges:
                 f"{half(style.speed, self.speed, 'slow', 'fast')}")
 
 
-TRAIN = StyleRanges(speed=((0.85, 1.6),), amplitude=((0.85, 1.7),), curvature=((0.0, 0.3),),
+TRAIN = StyleRanges(speed=((0.85, 1.6),), amplitude=((0.75, 1.5),), curvature=((0.0, 0.3),),
                     tremor_mm=((0.3, 1.2),), hand_scale=((0.85, 1.15),),
                     angle_deg=((75.0, 105.0),))
-HELD_OUT = StyleRanges(speed=((0.7, 0.85), (1.6, 1.9)), amplitude=((0.6, 0.8), (1.6, 1.9)),
+HELD_OUT = StyleRanges(speed=((0.7, 0.85), (1.6, 1.9)), amplitude=((0.55, 0.75), (1.5, 1.8)),
                        curvature=((0.3, 0.4),), tremor_mm=((1.2, 2.0),),
                        hand_scale=((0.75, 0.85), (1.15, 1.25)),
                        angle_deg=((60.0, 75.0), (105.0, 120.0)))

@@ -119,10 +119,10 @@ def test_replayed_simulated_trials_are_answered_as_the_service_answers(capsys, t
 
 
 def test_a_users_style_is_named_by_the_halves_of_its_ranges():
-    ranges = simdata.HELD_OUT  # amplitude 0.6-0.8 or 1.6-1.9, speed 0.7-0.85 or 1.6-1.9
+    ranges = simdata.HELD_OUT  # amplitude 0.55-0.75 or 1.5-1.8, speed 0.7-0.85 or 1.6-1.9
     assert ranges.quarter(UserStyle(amplitude=0.7, speed=0.75)) == "small/slow"
     assert ranges.quarter(UserStyle(amplitude=1.8, speed=0.75)) == "large/slow"
     assert ranges.quarter(UserStyle(amplitude=0.7, speed=1.7)) == "small/fast"
-    # one interval: split at its middle (training amplitude 0.85-1.7, speed 0.85-1.6)
-    assert simdata.TRAIN.quarter(UserStyle(amplitude=1.2, speed=1.3)) == "small/fast"
+    # one interval: split at its middle (training amplitude 0.75-1.5, speed 0.85-1.6)
+    assert simdata.TRAIN.quarter(UserStyle(amplitude=1.0, speed=1.3)) == "small/fast"
     assert simdata.TRAIN.quarter(UserStyle(amplitude=1.4, speed=1.2)) == "large/slow"
