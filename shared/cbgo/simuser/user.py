@@ -48,17 +48,18 @@ RETURN_REACH_RANGE = (0.4, 1.8)
 
 # How long a swipe of a user of speed 1 takes (log-normal around it, one swipe to the next),
 # fitted to the SHREC'17 train split's swipes by the speed the service reads (`cbgo bench dynamic
-# --realism DIR`, stop 49): peak speed 478 [257, 930] mm/s against real 474 [283, 734] (median
-# [10th, 90th percentile]). Real swipes still last longer (0.80 s against 0.55): their paths
-# wander 1.5 times their length, simulated ones 1.2. Until stop 48 a swipe took 0.45 s,
-# 0.9-1.1 times that: half as long as real ones, 1.6 times as fast.
+# --realism DIR --users 24`, stop 50): peak speed 479 [294, 793] mm/s against real 474 [283, 734]
+# (median [10th, 90th percentile]). Real swipes still last longer (0.80 s against 0.55): their
+# paths wander 1.5 times their length, simulated ones 1.2. Until stop 48 a swipe took 0.45 s,
+# 0.9-1.1 times that: half as long as real ones, 1.6 times as fast; 0.70 s in stop 49, before
+# the lengths varied (`SWIPE_LENGTH_RANGE`).
 SWIPE_S = 0.78
 SWIPE_S_LOG_SD = 0.25
 
 # How much a swipe's length differs from the user's amplitude: log-normal with SD
 # `UserStyle.length_spread`, clipped to this range, fitted with the users' amplitudes to the
-# SHREC'17 train split (`cbgo bench dynamic --realism DIR`: SD of the log length within a
-# person 0.38, between people 0.20). A longer swipe takes a little longer (its duration grows as
+# SHREC'17 train split (`cbgo bench dynamic --realism DIR --users 24`: SD of the log length
+# within a person 0.38, between people 0.20; simulated 0.35 and 0.19). A longer swipe takes a little longer (its duration grows as
 # its length ** SWIPE_S_LENGTH_EXPONENT). Until stop 49 a user's swipes were 0.9-1.1 times
 # their amplitude, and the simulated people differed twice as much as real ones.
 SWIPE_LENGTH_RANGE = (0.45, 2.2)
