@@ -59,9 +59,10 @@ SWIPE_S_LOG_SD = 0.25
 # How much a swipe's length differs from the user's amplitude: log-normal with SD
 # `UserStyle.length_spread`, clipped to this range, fitted with the users' amplitudes to the
 # SHREC'17 train split (`cbgo bench dynamic --realism DIR --users 24`: SD of the log length
-# within a person 0.38, between people 0.20; simulated 0.35 and 0.19). A longer swipe takes a little longer (its duration grows as
-# its length ** SWIPE_S_LENGTH_EXPONENT). Until stop 49 a user's swipes were 0.9-1.1 times
-# their amplitude, and the simulated people differed twice as much as real ones.
+# within a person 0.38, between people 0.20; simulated 0.35 and 0.19). A longer swipe takes a
+# little longer (its duration grows as its length ** SWIPE_S_LENGTH_EXPONENT). Until stop 49 a
+# user's swipes were 0.9-1.1 times their amplitude, and the simulated people differed twice as
+# much as real ones.
 SWIPE_LENGTH_RANGE = (0.45, 2.2)
 SWIPE_S_LENGTH_EXPONENT = 0.3
 SWIPE_MM_MAX = 330.0  # the field's width less a margin: longer swipes would leave it
