@@ -414,6 +414,10 @@ def run(args: argparse.Namespace) -> int:
         simulated = realbench.simulated_habits(args.users, args.seed, config)
         table = realbench.print_realism(real, simulated)
         table["spread"] = realbench.print_spread(real, simulated)
+        ungated = realbench.ungated(config)
+        table["speed_by_length"] = realbench.print_speed_by_length(
+            realbench.real_habits(args.realism, "train", ungated),
+            realbench.simulated_habits(args.users, args.seed, ungated))
         if args.json:
             args.json.write_text(json.dumps(table, indent=1))
         if args.plot:

@@ -57,7 +57,7 @@ import shutil
 import tempfile
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -1066,6 +1066,61 @@ def print_spread(real: list[dict], simulated: list[dict]) -> dict:
                        "simulated": person_spread(simulated, name)}
         print(f"{name:<20}" + "".join(f"{between:>21.3f}, {within:<8.3f}"
                                       for between, within in table[name].values()))
+    return table
+
+
+LENGTH_BANDS_MM = ((20, 70), (70, 100), (100, 140), (140, 200), (200, 400))
+"""Swipe lengths (mm) over which `speed_by_length` compares peak speeds."""
+
+
+def ungated(config):
+    """Returns `config` with the speed gates off: every swipe counted, however slow.
+
+    The realism table measures the swipes the service evaluates; whether a short swipe is too
+    slow for the gates (`SegmenterConfig.min_peak_speed_mm_s`) is seen only with them off.
+    """
+    return replace(config, min_peak_speed_mm_s=0.0, mid_peak_speed_mm_s=0.0,
+                   min_extent_mm=LENGTH_BANDS_MM[0][0])
+
+
+def _band_speeds(rows: list[dict]) -> dict:
+    """Returns, per `LENGTH_BANDS_MM` band, the share of swipes and their peak speeds."""
+    length = np.array([r["length_mm"] for r in rows])
+    peak = np.array([r["peak_mm_s"] for r in rows])
+    out = {}
+    for lo, hi in LENGTH_BANDS_MM:
+        inside = (length >= lo) & (length < hi)
+        if inside.any():
+            out[f"{lo}-{hi}"] = {"share": float(inside.mean()),
+                                 "peak_p10": float(np.percentile(peak[inside], 10)),
+                                 "peak_p50": float(np.median(peak[inside])),
+                                 "under_200": float(np.mean(peak[inside] < 200.0))}
+    fit = (length >= LENGTH_BANDS_MM[0][0]) & (peak > 0)
+    out["slope"] = float(np.polyfit(np.log(length[fit]), np.log(peak[fit]), 1)[0])
+    return out
+
+
+def print_speed_by_length(real: list[dict], simulated: list[dict]) -> dict:
+    """Prints peak speed by swipe length, real beside simulated (habits of `ungated` runs).
+
+    A short swipe is caught only if it is brisk enough for the segmenter's speed gate, so the
+    benches' short simulated swipes must be as quick as real people's, not only their lengths
+    and speeds apart. ``slope``: of log peak speed on log length, over all swipes.
+    """
+    table = {"real": _band_speeds(real), "simulated": _band_speeds(simulated)}
+    def cell(c: dict | None) -> str:
+        if c is None:
+            return f"{'-':>36}"
+        return (f"{c['share']:>12.2f}{c['peak_p10']:>8.0f}/{c['peak_p50']:<6.0f}"
+                f"{c['under_200']:>9.2f}")
+
+    print(f"\n{'peak speed by length':<26}{'real: share, p10/p50 mm/s, < 200':>36}"
+          f"{'simulated':>36}")
+    for band in (f"{lo}-{hi}" for lo, hi in LENGTH_BANDS_MM):
+        print(f"{band + ' mm':<26}" + "".join(cell(table[k].get(band))
+                                              for k in ("real", "simulated")))
+    print(f"{'slope, log peak on log length':<26}{table['real']['slope']:>12.2f}"
+          f"{table['simulated']['slope']:>36.2f}")
     return table
 
 

@@ -46,25 +46,29 @@ RETURN_REACH = 0.98
 RETURN_REACH_LOG_SD = 0.33
 RETURN_REACH_RANGE = (0.4, 1.8)
 
-# How long a swipe of a user of speed 1 takes (log-normal around it, one swipe to the next),
-# fitted to the SHREC'17 train split's swipes by the speed the service reads (`cbgo bench dynamic
-# --realism DIR --users 24`, stop 50): peak speed 479 [294, 793] mm/s against real 474 [283, 734]
-# (median [10th, 90th percentile]). Real swipes still last longer (0.80 s against 0.55): their
-# paths wander 1.5 times their length, simulated ones 1.2. Until stop 48 a swipe took 0.45 s,
-# 0.9-1.1 times that: half as long as real ones, 1.6 times as fast; 0.70 s in stop 49, before
-# the lengths varied (`SWIPE_LENGTH_RANGE`).
-SWIPE_S = 0.78
-SWIPE_S_LOG_SD = 0.25
+# How long a 160 mm swipe (`STROKE_MM`) of a user of speed 1 takes (log-normal around it, one
+# swipe to the next), fitted to the SHREC'17 train split's swipes by the speed the service reads
+# (`cbgo bench dynamic --realism DIR --users 24`, stop 51): peak speed 480 [297, 759] mm/s
+# against real 474 [283, 734] (median [10th, 90th percentile]). Real swipes still last longer
+# (0.80 s against 0.55): their paths wander 1.5 times their length, simulated ones 1.2. Until
+# stop 48 a swipe took 0.45 s, 0.9-1.1 times that: half as long as real ones, 1.6 times as fast.
+SWIPE_S = 0.74
+SWIPE_S_LOG_SD = 0.3
 
 # How much a swipe's length differs from the user's amplitude: log-normal with SD
 # `UserStyle.length_spread`, clipped to this range, fitted with the users' amplitudes to the
 # SHREC'17 train split (`cbgo bench dynamic --realism DIR --users 24`: SD of the log length
-# within a person 0.38, between people 0.20; simulated 0.35 and 0.19). A longer swipe takes a
-# little longer (its duration grows as its length ** SWIPE_S_LENGTH_EXPONENT). Until stop 49 a
-# user's swipes were 0.9-1.1 times their amplitude, and the simulated people differed twice as
-# much as real ones.
+# within a person 0.38, between people 0.20; simulated 0.36 and 0.20). Until stop 49 a user's
+# swipes were 0.9-1.1 times their amplitude, and the simulated people differed twice as much as
+# real ones.
 SWIPE_LENGTH_RANGE = (0.45, 2.2)
-SWIPE_S_LENGTH_EXPONENT = 0.3
+# A swipe's duration grows as its length ** this, whether it is short because the person makes
+# small strokes or because this one is: a real short swipe is quick (the same bench's "peak
+# speed by length": log peak speed grows 0.53 per log length, real; 0.52 simulated; swipes of
+# 20-70 mm under 200 mm/s: real 5 %, simulated 18 %). With 0.3 of the length spread alone
+# (stop 50) 60 % of them were, too slow for the segmenter's speed gate, which real people's are
+# not.
+SWIPE_S_LENGTH_EXPONENT = 0.55
 SWIPE_MM_MAX = 330.0  # the field's width less a margin: longer swipes would leave it
 
 STROKE_BOX = (np.array([-190.0, 100.0, -150.0]), np.array([190.0, 470.0, 150.0]))
@@ -250,7 +254,7 @@ class SimulatedUser:
         medial = horizontal and (direction[0] < 0) == (style.side == "right")
         roll = np.radians(rng.normal(-style.medial_roll_deg if medial else 0.0,
                                      style.swipe_roll_deg * (1.0 if horizontal else 0.5)))
-        seconds = (SWIPE_S / style.speed * spread ** SWIPE_S_LENGTH_EXPONENT
+        seconds = (SWIPE_S / style.speed * (length / STROKE_MM) ** SWIPE_S_LENGTH_EXPONENT
                    * float(np.exp(rng.normal(0.0, SWIPE_S_LOG_SD))))
         end = start + direction * length
         builder.move_to(end, seconds, "stroke", step.gesture, bow=bow, roll_to=roll)

@@ -5,7 +5,7 @@ import pytest
 
 from cbgo import keys, wire
 from cbgo.services.dynamic_gesture import realbench, shrec, simdata, train
-from cbgo.services.dynamic_gesture.stroke import Segmenter
+from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig
 from cbgo.wire import DYNAMIC_GESTURES
 
 
@@ -421,6 +421,25 @@ def test_a_habits_spread_is_split_between_people_and_within_a_person(capsys):
     table = realbench.print_spread(rows, one)
     assert table["duration_s"]["real"] == (0.0, 0.0)
     assert "between people, within" in capsys.readouterr().out
+
+
+def test_peak_speed_by_length_shows_whether_short_swipes_are_too_slow_for_the_gate(capsys):
+    # peak speed grows as the square root of length: slope 0.5; the 50 mm swipes are slow
+    lengths = [50.0, 50.0, 80.0, 120.0, 160.0, 250.0]
+    rows = [{"length_mm": v, "peak_mm_s": 25.0 * np.sqrt(v)} for v in lengths]
+    table = realbench.print_speed_by_length(rows, rows[2:])
+    assert table["real"]["slope"] == pytest.approx(0.5)
+    short = table["real"]["20-70"]
+    assert short["share"] == pytest.approx(2 / 6) and short["under_200"] == 1.0
+    assert short["peak_p50"] == pytest.approx(25.0 * np.sqrt(50.0))
+    assert "20-70" not in table["simulated"] and table["simulated"]["200-400"]["under_200"] == 0
+    assert "peak speed by length" in capsys.readouterr().out
+
+
+def test_ungated_counts_slow_swipes_and_keeps_the_rest_of_the_config():
+    config = realbench.ungated(SegmenterConfig(end_speed_mm_s=55.0))
+    assert config.min_peak_speed_mm_s == 0.0 and config.mid_peak_speed_mm_s == 0.0
+    assert config.end_speed_mm_s == 55.0
 
 
 def test_the_realism_table_gives_a_yes_or_no_habit_as_a_share_and_draws_the_habits(tmp_path,

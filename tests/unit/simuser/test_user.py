@@ -42,12 +42,12 @@ def test_a_pointing_hand_aims_its_index_finger_at_the_gaze_target(side, target):
 
 
 def recorded_moves(monkeypatch, style: dict, gestures: list) -> list:
-    """Returns (phase, from, to) of every move a simulated user of `style` makes."""
+    """Returns (phase, from, to, seconds) of every move a simulated user of `style` makes."""
     moves = []
     move_to = TimelineBuilder.move_to
 
     def recorded(builder, target, seconds, phase, *args, **kwargs):
-        moves.append((phase, np.array(builder.position), np.array(target)))
+        moves.append((phase, np.array(builder.position), np.array(target), seconds))
         return move_to(builder, target, seconds, phase, *args, **kwargs)
 
     monkeypatch.setattr(TimelineBuilder, "move_to", recorded)
@@ -72,7 +72,7 @@ def test_returns_come_back_a_varying_share_of_their_swipe_as_real_people_do(monk
 
 
 def swipe_lengths(moves) -> np.ndarray:
-    return np.array([np.linalg.norm(to - start) for phase, start, to in moves
+    return np.array([np.linalg.norm(to - start) for phase, start, to, _ in moves
                      if phase == "stroke"])
 
 
@@ -85,6 +85,26 @@ def test_one_persons_swipes_differ_in_length_as_a_real_persons_do(monkeypatch):
     # The SHREC'17 train split: SD of the log length within a person 0.38 (default 0.42).
     assert 0.3 < np.std(np.log(lengths)) < 0.5
     assert 0.85 < np.median(lengths) / nominal < 1.15
+
+
+def test_a_short_swipe_is_quicker_as_a_real_persons_is(monkeypatch):
+    moves = recorded_moves(monkeypatch, {}, ["swipe_right"] * 400)
+    swipes = [(np.linalg.norm(to - start), seconds) for phase, start, to, seconds in moves
+              if phase == "stroke"]
+    lengths, seconds = np.log(np.array(swipes)).T
+    # Its duration grows as length ** 0.55, so its peak speed as length ** 0.45 (SHREC'17 train
+    # split, `--realism`: 0.53): short swipes stay brisk enough for the segmenter's speed gate.
+    assert 0.45 < np.polyfit(lengths, seconds, 1)[0] < 0.65
+
+
+def test_a_small_strokes_user_swipes_quicker_than_a_large_strokes_one(monkeypatch):
+    def seconds(amplitude: float) -> float:
+        moves = recorded_moves(monkeypatch, {"amplitude": amplitude, "length_spread": 0},
+                               ["swipe_up"] * 40)
+        return float(np.median([m[3] for m in moves if m[0] == "stroke"]))
+
+    # 0.4 ** 0.55 = 0.60: the smaller person's swipes are shorter AND quicker, not slower
+    assert 0.5 < seconds(0.6) / seconds(1.5) < 0.72
 
 
 def test_a_user_without_length_spread_swipes_the_same_length_each_time(monkeypatch):
