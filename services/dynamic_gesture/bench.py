@@ -86,7 +86,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--users", type=int, default=16, help="held-out users [16]")
     parser.add_argument("--reps", type=int, default=2, help="strokes per gesture and user [2]")
     parser.add_argument("--ranges", choices=sorted(simdata.RANGES), default="held-out",
-                        help="style ranges of the users [held-out]")
+                        help="style ranges of the users: held-out (outside the training "
+                             "range), train (inside it), default (every user of the default "
+                             "style, as a scenario file's) [held-out]")
     parser.add_argument("--seed", type=int, default=BENCH_SEED, help=f"[{BENCH_SEED}]")
     parser.add_argument("--still", type=int, default=4, help="still-hand sessions [4]")
     parser.add_argument("--jobs", type=int, default=2, help="processes simulating users [2]")

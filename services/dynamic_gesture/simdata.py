@@ -79,8 +79,10 @@ class StyleRanges:
         extremes fail for different reasons, so the benches score them apart.
         """
         def half(value: float, intervals: tuple[Interval, ...], low: str, high: str) -> str:
-            middle = (min(lo for lo, _ in intervals) + max(hi for _, hi in intervals)) / 2
-            return low if value < middle else high
+            lowest, highest = min(lo for lo, _ in intervals), max(hi for _, hi in intervals)
+            if lowest == highest:
+                return "typical"  # one value drawn (`default_style_ranges`)
+            return low if value < (lowest + highest) / 2 else high
 
         return (f"{half(style.amplitude, self.amplitude, 'small', 'large')}/"
                 f"{half(style.speed, self.speed, 'slow', 'fast')}")
@@ -93,7 +95,29 @@ HELD_OUT = StyleRanges(speed=((0.7, 0.85), (1.6, 1.9)), amplitude=((0.55, 0.75),
                        curvature=((0.3, 0.4),), tremor_mm=((1.2, 2.0),),
                        hand_scale=((0.75, 0.85), (1.15, 1.25)),
                        angle_deg=((60.0, 75.0), (105.0, 120.0)))
-RANGES = {"train": TRAIN, "held-out": HELD_OUT}
+
+
+def default_style_ranges() -> StyleRanges:
+    """Returns ranges that draw only `UserStyle()`, a right hand.
+
+    What a scenario file's user is unless it says otherwise; its swipes still vary in length,
+    and its rotates in angle, as any user's.
+    """
+    typical = UserStyle()
+
+    def only(name: str) -> tuple[Interval, ...]:
+        value = float(getattr(typical, name))
+        return ((value, value),)
+
+    habits = ("stroke_lead", "rest_s", "swipe_roll_deg", "medial_roll_deg", "return_slowdown",
+              "length_spread")
+    return StyleRanges(speed=only("speed"), amplitude=only("amplitude"),
+                       curvature=only("curvature"), tremor_mm=only("tremor_mm"),
+                       hand_scale=only("hand_scale"), angle_deg=TRAIN.angle_deg,
+                       left_share=0.0, **{name: only(name) for name in habits})
+
+
+RANGES = {"train": TRAIN, "held-out": HELD_OUT, "default": default_style_ranges()}
 
 
 @dataclass

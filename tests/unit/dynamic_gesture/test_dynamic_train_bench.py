@@ -126,3 +126,13 @@ def test_a_users_style_is_named_by_the_halves_of_its_ranges():
     # one interval: split at its middle (training amplitude 0.75-1.5, speed 0.85-1.6)
     assert simdata.TRAIN.quarter(UserStyle(amplitude=1.0, speed=1.3)) == "small/fast"
     assert simdata.TRAIN.quarter(UserStyle(amplitude=1.4, speed=1.2)) == "large/slow"
+    # one value: the default style, neither half
+    assert simdata.RANGES["default"].quarter(UserStyle()) == "typical/typical"
+
+
+def test_the_default_ranges_draw_the_default_style_but_its_swipes_still_vary():
+    rng = np.random.default_rng(4)
+    style, angles = simdata.RANGES["default"].draw(rng, "u")
+    assert style == UserStyle(side="right")
+    low, high = simdata.TRAIN.angle_deg[0]
+    assert low * 0.93 <= angles[0] < angles[1] <= high * 1.07 and style.length_spread > 0
