@@ -927,7 +927,7 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
         seen_after = end_t - w.t_end >= NEIGHBOUR_S
         roll = float(np.degrees(w.obs[-1, 3] / roll_scale))
         across = d[0] != 0 and (d[0] < 0) == (w.side == "right")
-        out.append({"length_mm": length, "roll_deg": roll,
+        out.append({"way": way_of(truth, w.side), "length_mm": length, "roll_deg": roll,
                     "roll_across_deg": roll if across else np.nan,
                     "start_along": float((start - middle) @ d / length),
                     "duration_s": w.t_end - w.t_start, "peak_mm_s": w.peak_speed,
@@ -939,6 +939,39 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
                     "return_length_ratio": _length_ratio(after[:1], w),
                     "over_preparation": 1.0 / _length_ratio(before, w)})
     return out
+
+
+WAYS = ("across", "outward", "up", "down")
+"""A swipe's way: a horizontal one across the body (a right hand's to the left) or outward."""
+
+
+def way_of(swipe: str, side: str) -> str:
+    """Returns which of `WAYS` a swipe goes, made by a `side` hand."""
+    if swipe in ("swipe_up", "swipe_down"):
+        return swipe.removeprefix("swipe_")
+    return "across" if (swipe == "swipe_left") == (side == "right") else "outward"
+
+
+def by_way(real: list[dict], simulated: list[dict]) -> dict:
+    """Prints each way's median length and peak speed, real beside simulated; returns them.
+
+    Real people swipe across the body farther than outward, and up and down shorter: the
+    benches' users must, or their vertical swipes are too long and slow for their length.
+    """
+    def medians(rows: list[dict], way: str) -> dict:
+        mine = [r for r in rows if r.get("way") == way]
+        return {"swipes": len(mine),
+                **{name: float(np.median([r[name] for r in mine])) if mine else np.nan
+                   for name in ("length_mm", "peak_mm_s", "duration_s")}}
+
+    table = {way: {"real": medians(real, way), "simulated": medians(simulated, way)}
+             for way in WAYS}
+    print(f"\n{'by way (medians)':<18}{'real: n, length, peak, duration':>40}{'simulated':>40}")
+    for way, sets in table.items():
+        print(f"{way:<18}" + "".join(
+            f"{m['swipes']:>14d}{m['length_mm']:>8.0f} mm{m['peak_mm_s']:>6.0f} mm/s"
+            f"{m['duration_s']:>6.2f} s" for m in sets.values()))
+    return table
 
 
 def _mean_speed(window) -> float:

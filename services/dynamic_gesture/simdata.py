@@ -52,7 +52,7 @@ class StyleRanges:
     swipe_roll_deg: tuple[Interval, ...] = ((15.0, 60.0),)
     medial_roll_deg: tuple[Interval, ...] = ((30.0, 70.0),)
     return_slowdown: tuple[Interval, ...] = ((0.6, 1.4),)
-    length_spread: tuple[Interval, ...] = ((0.3, 0.55),)
+    length_spread: tuple[Interval, ...] = ((0.25, 0.5),)
 
     def draw(self, rng: np.random.Generator, name: str) -> tuple[UserStyle, tuple[float, float]]:
         """Returns a user style and the (low, high) roll angles of its rotate strokes."""

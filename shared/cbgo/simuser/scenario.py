@@ -68,8 +68,9 @@ class UserStyle:
     medial_roll_deg: float = 50.0  # mean palm roll (thumb side down) swiping across the body
     return_slowdown: float = 1.0  # the return's duration over the stroke's, per share of its
     # length it comes back (real returns are about as fast as their swipe: 0.91 of its speed)
-    length_spread: float = 0.42  # SD of the log of a swipe's length around the amplitude (one
-    # real person's: 0.38, pooled over the SHREC'17 train split; 0: every swipe the amplitude)
+    length_spread: float = 0.37  # SD of the log of a swipe's length around its way's length
+    # (`user.SWIPE_WAY_LENGTH`; one real person's, ways pooled: 0.38 over the SHREC'17 train
+    # split; 0: every swipe of a way as long)
 
     def __post_init__(self):
         if self.side not in ("left", "right"):
