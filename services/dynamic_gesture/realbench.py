@@ -78,7 +78,7 @@ from cbgo.services.dynamic_gesture.stroke import (
 )
 from cbgo.simuser.motion import CENTRE_MM, min_jerk
 from cbgo.simuser.scenario import IDLE_MOTIONS, Episode, GestureStep, Scenario
-from cbgo.simuser.user import SimulatedUser
+from cbgo.simuser.user import SWIPE_WAY_LENGTH, SimulatedUser, swipe_way
 from cbgo.wire import DYNAMIC_GESTURES
 
 OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture of ours
@@ -926,9 +926,9 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
         # one came: keeping the short recordings that do show one would bias the share up
         seen_after = end_t - w.t_end >= NEIGHBOUR_S
         roll = float(np.degrees(w.obs[-1, 3] / roll_scale))
-        across = d[0] != 0 and (d[0] < 0) == (w.side == "right")
-        out.append({"way": way_of(truth, w.side), "length_mm": length, "roll_deg": roll,
-                    "roll_across_deg": roll if across else np.nan,
+        way = swipe_way(truth, w.side)
+        out.append({"way": way, "length_mm": length, "roll_deg": roll,
+                    "roll_across_deg": roll if way == "across" else np.nan,
                     "start_along": float((start - middle) @ d / length),
                     "duration_s": w.t_end - w.t_start, "peak_mm_s": w.peak_speed,
                     "peak_over_mean": w.peak_speed / _mean_speed(w),
@@ -941,17 +941,6 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
     return out
 
 
-WAYS = ("across", "outward", "up", "down")
-"""A swipe's way: a horizontal one across the body (a right hand's to the left) or outward."""
-
-
-def way_of(swipe: str, side: str) -> str:
-    """Returns which of `WAYS` a swipe goes, made by a `side` hand."""
-    if swipe in ("swipe_up", "swipe_down"):
-        return swipe.removeprefix("swipe_")
-    return "across" if (swipe == "swipe_left") == (side == "right") else "outward"
-
-
 def by_way(real: list[dict], simulated: list[dict]) -> dict:
     """Prints each way's median length and peak speed, real beside simulated; returns them.
 
@@ -959,13 +948,13 @@ def by_way(real: list[dict], simulated: list[dict]) -> dict:
     benches' users must, or their vertical swipes are too long and slow for their length.
     """
     def medians(rows: list[dict], way: str) -> dict:
-        mine = [r for r in rows if r.get("way") == way]
+        mine = [r for r in rows if r["way"] == way]
         return {"swipes": len(mine),
                 **{name: float(np.median([r[name] for r in mine])) if mine else np.nan
                    for name in ("length_mm", "peak_mm_s", "duration_s")}}
 
     table = {way: {"real": medians(real, way), "simulated": medians(simulated, way)}
-             for way in WAYS}
+             for way in SWIPE_WAY_LENGTH}
     print(f"\n{'by way (medians)':<18}{'real: n, length, peak, duration':>40}{'simulated':>40}")
     for way, sets in table.items():
         print(f"{way:<18}" + "".join(

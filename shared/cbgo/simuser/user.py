@@ -37,12 +37,23 @@ SWIPE_DIRECTIONS = {
     "swipe_up": np.array([0.0, 1.0, 0.0]), "swipe_down": np.array([0.0, -1.0, 0.0]),
     "swipe_left": np.array([-1.0, 0.0, 0.0]), "swipe_right": np.array([1.0, 0.0, 0.0]),
 }
-# How long a swipe is each way, relative to the user's amplitude: real people swipe farther
-# across the body (a right hand to the left) than outward, and up and down shorter still
-# (`cbgo bench dynamic --realism DIR`'s "by way" table, SHREC'17 train split, medians: 235,
-# 194, 153 and 131 mm). Until stop 51 every way was as long, but down 0.85 times.
-SWIPE_WAY_LENGTH = {"across": 1.35, "outward": 1.13, "up": 0.96, "down": 0.64}  # simulated: 233,
-# 197, 160, 127 mm
+# How long a swipe is each way (`swipe_way`), relative to the user's amplitude: real people
+# swipe farther across the body (a right hand to the left) than outward, and up and down shorter
+# still (`cbgo bench dynamic --realism DIR --users 24`'s "by way" table, SHREC'17 train split,
+# medians: 235, 194, 153 and 131 mm; simulated 235, 195, 158, 127). Until stop 51 every way was
+# as long, but down 0.85 times.
+SWIPE_WAY_LENGTH = {"across": 1.35, "outward": 1.13, "up": 0.96, "down": 0.64}
+
+
+def swipe_way(swipe: str, side: str) -> str:
+    """Returns which way of `SWIPE_WAY_LENGTH` a swipe made by a `side` hand goes.
+
+    A horizontal swipe goes across the body (a right hand's to the left, a left hand's to the
+    right) or outward.
+    """
+    if swipe in ("swipe_up", "swipe_down"):
+        return swipe.removeprefix("swipe_")
+    return "across" if (swipe == "swipe_left") == (side == "right") else "outward"
 
 
 # How far a return comes back, as a share of its swipe: log-normal, median and spread fitted to
@@ -54,7 +65,7 @@ RETURN_REACH_RANGE = (0.4, 1.8)
 
 # How long a 160 mm swipe (`STROKE_MM`) of a user of speed 1 takes (log-normal around it, one
 # swipe to the next), fitted to the SHREC'17 train split's swipes by the speed the service reads
-# (`cbgo bench dynamic --realism DIR --users 24`, stop 51): peak speed 474 [300, 737] mm/s
+# (`cbgo bench dynamic --realism DIR --users 24`, stop 51): peak speed 476 [307, 700] mm/s
 # against real 474 [283, 734] (median [10th, 90th percentile]). Real swipes still last longer
 # (0.80 s against 0.55): their paths wander 1.5 times their length, simulated ones 1.2. Until
 # stop 48 a swipe took 0.45 s, 0.9-1.1 times that: half as long as real ones, 1.6 times as fast.
@@ -64,16 +75,16 @@ SWIPE_S_LOG_SD = 0.25
 # How much a swipe's length differs from the user's amplitude: log-normal with SD
 # `UserStyle.length_spread`, clipped to this range, fitted with the users' amplitudes to the
 # SHREC'17 train split (`cbgo bench dynamic --realism DIR --users 24`: SD of the log length
-# within a person 0.38, between people 0.20; simulated 0.39 and 0.18). Until stop 49 a user's
+# within a person 0.38, between people 0.20; simulated 0.39 and 0.19). Until stop 49 a user's
 # swipes were 0.9-1.1 times their amplitude, and the simulated people differed twice as much as
 # real ones.
 SWIPE_LENGTH_RANGE = (0.45, 2.2)
 # A swipe's duration grows as its length ** this, whether it is short because the person makes
 # small strokes or because this one is: a real short swipe is quick (the same bench's "peak
-# speed by length": log peak speed grows 0.53 per log length, real; 0.52 simulated; swipes of
-# 20-70 mm under 200 mm/s: real 5 %, simulated 18 %). With 0.3 of the length spread alone
-# (stop 50) 60 % of them were, too slow for the segmenter's speed gate, which real people's are
-# not.
+# speed by length": log peak speed grows 0.53 per log length, real; 0.50 simulated; swipes of
+# 20-70 mm under 200 mm/s: real 5 %, simulated 33 % of only 11). With 0.3 of the length spread
+# alone (stop 50) 60 % of them were, too slow for the segmenter's speed gate, which real
+# people's are not.
 SWIPE_S_LENGTH_EXPONENT = 0.55
 SWIPE_MM_MAX = 330.0  # the field's width less a margin: longer swipes would leave it
 
@@ -240,8 +251,7 @@ class SimulatedUser:
             return
         direction = SWIPE_DIRECTIONS[step.gesture]
         horizontal = abs(direction[0]) > 0.5
-        medial = horizontal and (direction[0] < 0) == (style.side == "right")
-        way = ("across" if medial else "outward") if horizontal else step.gesture[6:]
+        way = swipe_way(step.gesture, style.side)
         spread = float(np.clip(np.exp(rng.normal(0.0, style.length_spread)),
                                *SWIPE_LENGTH_RANGE))
         length = min(STROKE_MM * style.amplitude * SWIPE_WAY_LENGTH[way] * spread,
@@ -260,7 +270,7 @@ class SimulatedUser:
         # A real palm turns to face where it swipes across the body (a right hand swiping left
         # rolls its thumb side down: median 57° over the SHREC'17 train split's swipes), and
         # hardly, on average, the other ways (0°); a left hand is the right one's mirror image.
-        roll = np.radians(rng.normal(-style.medial_roll_deg if medial else 0.0,
+        roll = np.radians(rng.normal(-style.medial_roll_deg if way == "across" else 0.0,
                                      style.swipe_roll_deg * (1.0 if horizontal else 0.5)))
         seconds = (SWIPE_S / style.speed * (length / STROKE_MM) ** SWIPE_S_LENGTH_EXPONENT
                    * float(np.exp(rng.normal(0.0, SWIPE_S_LOG_SD))))

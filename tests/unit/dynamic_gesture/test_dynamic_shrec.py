@@ -436,6 +436,19 @@ def test_peak_speed_by_length_shows_whether_short_swipes_are_too_slow_for_the_ga
     assert "peak speed by length" in capsys.readouterr().out
 
 
+def test_the_by_way_table_gives_each_ways_medians_real_beside_simulated(capsys):
+    def row(way: str, length: float) -> dict:
+        return {"way": way, "length_mm": length, "peak_mm_s": 2.5 * length, "duration_s": 0.6}
+
+    real = [row("across", 230.0), row("across", 240.0), row("down", 130.0)]
+    table = realbench.by_way(real, [row("up", 150.0)])
+    assert table["across"]["real"] == {"swipes": 2, "length_mm": 235.0, "peak_mm_s": 587.5,
+                                       "duration_s": 0.6}
+    assert table["down"]["real"]["swipes"] == 1 and table["up"]["real"]["swipes"] == 0
+    assert np.isnan(table["outward"]["simulated"]["length_mm"])
+    assert "by way (medians)" in capsys.readouterr().out
+
+
 def test_ungated_counts_slow_swipes_and_keeps_the_rest_of_the_config():
     config = realbench.ungated(SegmenterConfig(end_speed_mm_s=55.0))
     assert config.min_peak_speed_mm_s == 0.0 and config.mid_peak_speed_mm_s == 0.0

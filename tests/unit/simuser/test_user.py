@@ -123,3 +123,5 @@ def test_real_people_swipe_farthest_across_the_body_and_shortest_down(monkeypatc
         "swipe_up", "right") > length("swipe_down", "right")
     # a left hand's across is to the right: the mirror image
     assert length("swipe_right", "left") == pytest.approx(length("swipe_left", "right"))
+    assert user_module.swipe_way("swipe_right", "left") == "across"
+    assert user_module.swipe_way("swipe_left", "left") == "outward"
