@@ -417,6 +417,7 @@ def run(args: argparse.Namespace) -> int:
         table = realbench.print_realism(real, simulated)
         table["spread"] = realbench.print_spread(real, simulated)
         table["by_way"] = realbench.by_way(real, simulated)
+        table["geometry"] = realbench.print_geometry(real, simulated)
         ungated = realbench.ungated(config)
         table["speed_by_length"] = realbench.print_speed_by_length(
             realbench.real_habits(args.realism, "train", ungated),

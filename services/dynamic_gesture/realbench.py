@@ -78,7 +78,7 @@ from cbgo.services.dynamic_gesture.stroke import (
 )
 from cbgo.simuser.motion import CENTRE_MM, min_jerk
 from cbgo.simuser.scenario import IDLE_MOTIONS, Episode, GestureStep, Scenario
-from cbgo.simuser.user import SWIPE_WAY_LENGTH, SimulatedUser, swipe_way
+from cbgo.simuser.user import SWIPE_DIRECTIONS, SWIPE_WAY_LENGTH, SimulatedUser, swipe_way
 from cbgo.wire import DYNAMIC_GESTURES
 
 OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture of ours
@@ -885,6 +885,11 @@ def _print_score(field: str, block: dict) -> None:
 HABITS = ("length_mm", "roll_deg", "roll_across_deg", "start_along", "duration_s", "peak_mm_s",
           "peak_over_mean", "bow", "returned", "return_speed_ratio", "return_length_ratio",
           "over_preparation")
+FORWARD = np.array([0.0, 0.0, -1.0])
+"""Away from the person, over a desk sensor (the Leap frame's z points at the person)."""
+GEOMETRY = ("arc_sideways", "drift_sideways", "arc_forward", "drift_forward")
+"""How a swipe's path leaves its direction, in units of its length (`geometry`), on the axes
+`user.swipe_sideways` and `user.FORWARD`: printed by way (`print_geometry`)."""
 
 
 NEIGHBOUR_S = 1.5
@@ -937,7 +942,37 @@ def habits(windows: list, truths: list[str], middle: np.ndarray, roll_scale: flo
                     "return_speed_ratio": (after[0].peak_speed / max(w.peak_speed, 1.0)
                                            if after else np.nan),
                     "return_length_ratio": _length_ratio(after[:1], w),
-                    "over_preparation": 1.0 / _length_ratio(before, w)})
+                    "over_preparation": 1.0 / _length_ratio(before, w),
+                    **geometry(xyz, length, swipe_sideways(truth, w.side))})
+    return out
+
+
+def swipe_sideways(swipe: str, side: str) -> np.ndarray:
+    """Returns the axis in the sensor's plane across a swipe made by a `side` hand.
+
+    Up for a swipe left or right, medial (towards the body's midline: -x for a right hand) for
+    a swipe up or down, so that a left hand's swipes are measured as a right hand's mirror
+    image.
+    """
+    if abs(SWIPE_DIRECTIONS[swipe][0]) > 0.5:
+        return np.array([0.0, 1.0, 0.0])
+    return np.array([-1.0 if side == "right" else 1.0, 0.0, 0.0])
+
+
+def geometry(xyz: np.ndarray, length: float, sideways: np.ndarray) -> dict:
+    """Returns how a swipe's path (n, 3), relative to its start, leaves its direction.
+
+    On the `sideways` axis and on `FORWARD`, in units of the swipe's `length`: ``drift_*``,
+    where it ends; ``arc_*``, its farthest signed deviation from the straight line between its
+    ends (a path bowed forward in its middle has ``arc_forward`` > 0).
+    """
+    chord = xyz[-1] / max(float(np.linalg.norm(xyz[-1])), 1e-9)
+    off_chord = xyz - np.outer(xyz @ chord, chord)
+    out = {}
+    for name, axis in (("sideways", sideways), ("forward", FORWARD)):
+        deviation = off_chord @ axis
+        out[f"arc_{name}"] = float(deviation[np.argmax(np.abs(deviation))] / length)
+        out[f"drift_{name}"] = float(xyz[-1] @ axis / length)
     return out
 
 
@@ -960,6 +995,31 @@ def by_way(real: list[dict], simulated: list[dict]) -> dict:
         print(f"{way:<18}" + "".join(
             f"{m['swipes']:>14d}{m['length_mm']:>8.0f} mm{m['peak_mm_s']:>6.0f} mm/s"
             f"{m['duration_s']:>6.2f} s" for m in sets.values()))
+    return table
+
+
+def print_geometry(real: list[dict], simulated: list[dict]) -> dict:
+    """Prints each way's `GEOMETRY`, real beside simulated (median [10th, 90th percentile]).
+
+    Real swipes are no straight lines: they bow forward (away from the person) in their
+    middle and end off their direction, each way its own way. The simulated users' swipes bow
+    only in the sensor's plane: drawn in as real people's, the bows and drifts read the
+    held-out real people no better (the README, "How real swipes leave their line").
+    """
+    def spread(rows: list[dict], way: str, name: str) -> list[float]:
+        values = np.array([r[name] for r in rows if r["way"] == way], dtype=float)
+        return [float(np.percentile(values, q)) for q in (50, 10, 90)] if len(values) else []
+
+    table = {way: {name: {"real": spread(real, way, name),
+                          "simulated": spread(simulated, way, name)} for name in GEOMETRY}
+             for way in SWIPE_WAY_LENGTH}
+    print(f"\n{'geometry by way':<26}{'real: median [p10, p90]':>24}{'simulated':>24}"
+          "   (lengths; sideways: up across, medial up/down)")
+    for way, names in table.items():
+        for name, sets in names.items():
+            print(f"{way + ' ' + name:<26}" + "".join(
+                f"{v[0]:>9.2f} [{v[1]:>5.2f},{v[2]:>5.2f}]" if v else f"{'-':>24}"
+                for v in sets.values()))
     return table
 
 

@@ -105,6 +105,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"[{STREAMS_PER_PERSON}]; the false-trigger rate of a few is a "
                              "small sample that moves by half between draws: 24 gives a "
                              "steadier figure (about 2 min more on 2 cores)")
+    parser.add_argument("--calibration-seed", type=int, default=0, metavar="K",
+                        help="seed of the calibration network's initial weights [0]; the "
+                             "leave-people-out figures move by a few tenths of a point from "
+                             "one to the next: compare changes over several")
     parser.add_argument("--misses", action="store_true",
                         help="with --folds: list every held-out swipe recording answered wrong, "
                              "with how far its palm moved")
@@ -176,17 +180,24 @@ def none_weights(labels: list[int], none_index: int, share: float = NONE_WEIGHT)
     return weights
 
 
-def fit(sim_train: list, sim_calib: list, real_people: list) -> Classifier:
-    """Learns the templates and fits the calibration (see the module docstring)."""
+def fit(sim_train: list, sim_calib: list, real_people: list, calibration_seed: int = 0
+        ) -> Classifier:
+    """Learns the templates and fits the calibration (see the module docstring).
+
+    ``calibration_seed`` draws the calibration network's initial weights: the fit lands in a
+    different optimum for each, and the held-out real people read a few tenths of a point
+    apart (`cbgo train dynamic --calibration-seed`).
+    """
     classifier = Classifier(learn_templates(sim_train + real_people), Calibration())
     feats, labels = labelled_features(classifier, sim_calib + real_people)
     weights = none_weights(labels, classifier.names.index(NONE))
-    classifier.calibration = fit_neural_calibration(feats, labels, weights=weights)
+    classifier.calibration = fit_neural_calibration(feats, labels, weights=weights,
+                                                    seed=calibration_seed)
     return classifier
 
 
 def fold_classifiers(sim_train: list, sim_calib: list, recordings: list, folds: int,
-                     return_s: float):
+                     return_s: float, calibration_seed: int = 0):
     """Yields (held-out people, a classifier learned without them) for each of `folds` groups.
 
     The SHREC'17 recordings' people, sorted, are dealt into the groups in turn.
@@ -196,7 +207,7 @@ def fold_classifiers(sim_train: list, sim_calib: list, recordings: list, folds: 
         held = set(people[k::folds])
         train_people = shrec.people_data([r for r in recordings if r[0].person not in held],
                                          return_s)
-        yield held, fit(sim_train, sim_calib, train_people)
+        yield held, fit(sim_train, sim_calib, train_people, calibration_seed)
 
 
 def simulated_sets(users: int, calib_users: int, reps: int, seed: int, jobs: int
@@ -237,8 +248,8 @@ def trial_answers(classifier: Classifier, windows: list, return_s: float) -> dic
 
 
 def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: int,
-                   return_s: float, log=print, streams_per_person: int = STREAMS_PER_PERSON
-                   ) -> dict:
+                   return_s: float, log=print, streams_per_person: int = STREAMS_PER_PERSON,
+                   calibration_seed: int = 0) -> dict:
     """Scores each group of real people with a library learned without them.
 
     Each trial (recording) is answered twice: by every reported window, and by the final
@@ -259,7 +270,8 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     rng = np.random.default_rng(TRAIN_SEED)
     config = SegmenterConfig(return_s=return_s)
     for k, (held, classifier) in enumerate(fold_classifiers(sim_train, sim_calib, recordings,
-                                                            folds, return_s)):
+                                                            folds, return_s,
+                                                            calibration_seed)):
         for seq, windows, _ in recordings:
             if seq.person not in held:
                 continue
@@ -335,7 +347,7 @@ def mirrored_window(window):
 
 def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
           real: Path | None = None, folds: int = 0, log=print,
-          streams_per_person: int = STREAMS_PER_PERSON
+          streams_per_person: int = STREAMS_PER_PERSON, calibration_seed: int = 0
           ) -> tuple[list[Template], NeuralCalibration, dict]:
     """Runs the whole training; returns templates, calibration and a summary."""
     t0 = time.perf_counter()
@@ -354,9 +366,11 @@ def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
                      "real": "shrec17 train split" if recordings else None}
     if folds and recordings:
         summary["leave_people_out"] = cross_validate(sim_train, sim_calib, recordings, folds,
-                                                     return_s, log, streams_per_person)
+                                                     return_s, log, streams_per_person,
+                                                     calibration_seed)
     real_people = shrec.people_data(recordings, return_s)
-    classifier = fit(sim_train, sim_calib, real_people)
+    classifier = fit(sim_train, sim_calib, real_people, calibration_seed)
+    summary["calibration_seed"] = calibration_seed
     summary["demonstrations"] = {name: len(w) for name, w in
                                  demonstrations(sim_train + real_people).items()}
     figures = evaluate(classifier, *labelled_features(classifier, sim_calib + real_people,
@@ -410,7 +424,8 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or trained_path(data_dir())
     templates, calibration, summary = train(args.users, args.calib_users, args.reps, args.seed,
                                             args.jobs, args.real, args.folds,
-                                            streams_per_person=args.streams)
+                                            streams_per_person=args.streams,
+                                            calibration_seed=args.calibration_seed)
     lpo = summary.get("leave_people_out", {})
     saved = {**summary, "leave_people_out": {k: v for k, v in lpo.items() if k != "misses"}
              } if lpo else summary

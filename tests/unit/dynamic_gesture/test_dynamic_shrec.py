@@ -449,6 +449,34 @@ def test_the_by_way_table_gives_each_ways_medians_real_beside_simulated(capsys):
     assert "by way (medians)" in capsys.readouterr().out
 
 
+def test_geometry_measures_a_forward_bow_and_a_drift_off_the_swipes_direction():
+    # a 200 mm swipe left (across the body for a right hand) that bows 30 mm forward (away
+    # from the person, -z) in its middle and ends 20 mm higher and 40 mm farther forward
+    s = np.linspace(0.0, 1.0, 21)[:, None]
+    xyz = s * np.array([-200.0, 20.0, -40.0]) + np.sin(np.pi * s) * np.array([0.0, 0.0, -30.0])
+    sideways = realbench.swipe_sideways("swipe_left", "right")
+    assert np.allclose(sideways, [0, 1, 0])  # across: up
+    g = realbench.geometry(xyz, 200.0, sideways)
+    assert g["drift_sideways"] == pytest.approx(0.1) and g["drift_forward"] == pytest.approx(0.2)
+    # the bow is taken off the straight line between the ends, which is tilted by the drift
+    assert g["arc_forward"] == pytest.approx(0.15, abs=0.01) and abs(g["arc_sideways"]) < 0.01
+    # up and down are measured medial: a left hand's as the right hand's mirror image
+    assert np.allclose(realbench.swipe_sideways("swipe_down", "right"), [-1, 0, 0])
+    assert np.allclose(realbench.swipe_sideways("swipe_down", "left"), [1, 0, 0])
+
+
+def test_the_geometry_table_gives_each_ways_percentiles_real_beside_simulated(capsys):
+    def row(way: str, arc: float) -> dict:
+        return {"way": way, **dict.fromkeys(realbench.GEOMETRY, 0.0), "arc_forward": arc}
+
+    real = [row("across", a) for a in (0.1, 0.2, 0.3)]
+    table = realbench.print_geometry(real, [row("up", 0.0)])
+    assert table["across"]["arc_forward"]["real"][0] == pytest.approx(0.2)
+    assert table["across"]["arc_forward"]["simulated"] == []
+    assert table["up"]["arc_forward"]["simulated"] == [0.0, 0.0, 0.0]
+    assert "geometry by way" in capsys.readouterr().out
+
+
 def test_ungated_counts_slow_swipes_and_keeps_the_rest_of_the_config():
     config = realbench.ungated(SegmenterConfig(end_speed_mm_s=55.0))
     assert config.min_peak_speed_mm_s == 0.0 and config.mid_peak_speed_mm_s == 0.0

@@ -44,6 +44,16 @@ def test_templates_and_calibration_learned_from_a_tiny_set_load_and_classify(one
 
 
 
+def test_the_calibration_seed_draws_the_networks_start_and_nothing_else(one_user):
+    same = [train.fit([one_user], [one_user], [], calibration_seed=k) for k in (3, 3)]
+    other = train.fit([one_user], [one_user], [], calibration_seed=4)
+    assert np.array_equal(same[0].calibration.w1, same[1].calibration.w1)
+    assert not np.allclose(other.calibration.w1, same[0].calibration.w1)
+    # the templates come from the demonstrations alone
+    assert [t.shape.tolist() for t in other.templates] == [t.shape.tolist()
+                                                           for t in same[0].templates]
+
+
 def test_a_left_hands_demonstrations_are_learned_in_the_right_hands_space(one_user):
     lefts = [replace(lw, window=replace(lw.window, side="left")) for lw in one_user.windows]
     right = train.demonstrations([one_user])
