@@ -39,6 +39,12 @@
    `realbench.GOALS["synthetic_trials"]` trials at least (a draw of 16 users moves it by
    several points).
 
+5. **Plain strokes** (``--plain-strokes REPS``): textbook minimum-jerk swipes and rotates on a
+   grid of length (or angle) and duration, from random places in the field, tilted, bowed and
+   rolling, after a rest or drifting in (`plainstrokes`), replayed offline like
+   ``--replay-sim``: no simulated person's habits, so where in length and duration a stroke
+   stops being heard.
+
 Every live run and the simulated streams end with issue 14's goals, judged on the figures just
 measured (`realbench.live_goals`, `realbench.stream_goals`).
 
@@ -53,6 +59,7 @@ Examples::
     cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec --plot /tmp/fig
     cbgo bench dynamic --live-sim 16           # simulated users through live services
     cbgo bench dynamic --replay-sim 100        # 500 such trials, offline, in about 3 min
+    cbgo bench dynamic --plain-strokes 2       # textbook strokes on a grid: what is heard
     cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
     cbgo bench dynamic --ranges train          # held-out users inside the training range
 """
@@ -70,7 +77,7 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, metrics, wire
-from cbgo.services.dynamic_gesture import realbench, shrec, simdata, train
+from cbgo.services.dynamic_gesture import plainstrokes, realbench, shrec, simdata, train
 from cbgo.services.dynamic_gesture.classifier import NONE, Classifier, normalised
 from cbgo.services.dynamic_gesture.dtw import dtw_naive, fastdtw_backend
 from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, save_default
@@ -101,6 +108,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "perform each dynamic gesture once per appearance of the hand, "
                              "played like --real through live dynamic-gesture and episode "
                              "services in real time [0: off]")
+    parser.add_argument("--plain-strokes", type=int, default=0, metavar="REPS",
+                        help="instead of the above: a grid of plain minimum-jerk swipes and "
+                             "rotates (`plainstrokes`: length or angle × duration × rest or "
+                             "not, REPS each, from random places, tilted, bowed, rolling) "
+                             "replayed offline through the service's logic (--templates): "
+                             "where a stroke stops being heard [0: off]")
     parser.add_argument("--replay-sim", type=int, default=0, metavar="USERS",
                         help="instead of the above: the --live-sim trials of USERS simulated "
                              "users replayed offline through the service's segmenter, return "
@@ -391,6 +404,19 @@ def run_replay_sim(args: argparse.Namespace) -> int:
     return realbench.report_replay(result, args.json)
 
 
+def run_plain_strokes(args: argparse.Namespace) -> int:
+    """``--plain-strokes REPS``: the grid of `plainstrokes`, replayed offline."""
+    classifier = Library(args.templates, None).load().classifier()
+    strokes = plainstrokes.grid(args.plain_strokes, args.seed)
+    t0 = time.perf_counter()
+    rows = plainstrokes.score(strokes, classifier, SegmenterConfig(), replay_trial)
+    print(f"{len(rows)} plain strokes replayed in {time.perf_counter() - t0:.0f} s")
+    figures = plainstrokes.report(rows)
+    if args.json:
+        args.json.write_text(json.dumps(figures, indent=1))
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Runs the three parts and prints their figures (or the real-data bench)."""
     if args.plot is not None and args.realism is None:
@@ -410,6 +436,8 @@ def run(args: argparse.Namespace) -> int:
         return realbench.report_live(result, args.json, synthetic=True)
     if args.replay_sim > 0:
         return run_replay_sim(args)
+    if args.plain_strokes > 0:
+        return run_plain_strokes(args)
     if args.realism is not None:
         config = SegmenterConfig()
         real = realbench.real_habits(args.realism, "train", config)
