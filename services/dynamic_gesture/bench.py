@@ -60,6 +60,7 @@ Examples::
     cbgo bench dynamic --live-sim 16           # simulated users through live services
     cbgo bench dynamic --replay-sim 100        # 500 such trials, offline, in about 3 min
     cbgo bench dynamic --plain-strokes 2       # textbook strokes on a grid: what is heard
+    cbgo bench dynamic --plain-strokes 2 --mirror   # ... made by a left hand
     cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
     cbgo bench dynamic --ranges train          # held-out users inside the training range
 """
@@ -150,7 +151,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="with --real: play every recording mirrored, as the other hand "
                            "makes it (x negated, sides swapped, swipe_left scored as "
                            "swipe_right): the left-hand path on real motion, both sets being "
-                           "right hands")
+                           "right hands; with --plain-strokes: a left hand's strokes")
     real.add_argument("--stream-returns", action="store_true",
                       help="with --real on LeapJS recordings: follow each swipe of a stream "
                            "with a return move (0.95 of its length, 0.92 of its speed: the "
@@ -409,8 +410,11 @@ def run_plain_strokes(args: argparse.Namespace) -> int:
     classifier = Library(args.templates, None).load().classifier()
     strokes = plainstrokes.grid(args.plain_strokes, args.seed)
     t0 = time.perf_counter()
-    rows = plainstrokes.score(strokes, classifier, SegmenterConfig(), replay_trial)
-    print(f"{len(rows)} plain strokes replayed in {time.perf_counter() - t0:.0f} s")
+    rows = plainstrokes.score(strokes, classifier, SegmenterConfig(), replay_trial,
+                              args.mirror)
+    hand = "left" if args.mirror else "right"
+    print(f"{len(rows)} plain strokes of a {hand} hand replayed in "
+          f"{time.perf_counter() - t0:.0f} s")
     figures = plainstrokes.report(rows)
     if args.json:
         args.json.write_text(json.dumps(figures, indent=1))

@@ -119,11 +119,18 @@ def grid(reps: int, seed: int) -> list[Stroke]:
                 GESTURES, range(len(LENGTHS_MM)), DURATIONS_S, (True, False), range(reps))]
 
 
-def score(strokes: list[Stroke], classifier, config, replay) -> list[dict]:
-    """Returns one row per stroke: its grid cell and the service's answers (`replay`)."""
+def score(strokes: list[Stroke], classifier, config, replay, mirror: bool = False
+          ) -> list[dict]:
+    """Returns one row per stroke: its grid cell and the service's answers (`replay`).
+
+    With `mirror`, each stroke is made by a left hand (`realbench.mirrored_trial`: a swipe
+    right becomes a swipe left, and is scored so).
+    """
     rows = []
     for k, stroke in enumerate(strokes):
         trial = realbench.Trial(stroke.gesture, stroke.gesture, f"plain-{k}", frames(stroke))
+        if mirror:
+            trial = realbench.mirrored_trial(trial)
         rows.append(replay(classifier, trial, config) | {
             "size": stroke.size, "seconds": stroke.seconds, "rest": stroke.rest})
     return rows

@@ -33,3 +33,11 @@ def test_a_brisk_swipe_is_heard_and_a_small_slow_one_is_not():
     assert figures["cells"]["swipes 180 0.4"] == [1, 1]
     assert figures["cells"]["swipes 60 1"] == [0, 1]
     assert figures["missed"] == 1 and figures["miss_answers"] == {"nothing": 1}
+
+
+def test_a_left_hands_plain_swipe_is_scored_as_its_mirror_image_and_heard():
+    classifier = Library(DEFAULT_PATH, None).load().classifier()
+    stroke = plainstrokes.draw("swipe_right", 3, 0.4, True, np.random.default_rng(1))
+    (row,) = plainstrokes.score([stroke], classifier, SegmenterConfig(), bench.replay_trial,
+                                mirror=True)
+    assert row["truth"] == "swipe_left" and row["dynamic"] == "swipe_left"
