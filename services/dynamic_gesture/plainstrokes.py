@@ -36,7 +36,8 @@ ROTATE_DEG = (40.0, 60.0, 80.0, 100.0, 130.0)
 TILT_DEG = 25.0  # a swipe's direction is off by up to this, in the sensor's plane
 BOW = 0.2  # its middle bows up to this share of its length, sideways and in depth
 ROLL_DEG = 45.0  # its palm rolls up to this and back on the way
-DRIFT_MM_S = 60.0  # the hand drifting in before a stroke without rest
+DRIFT_MM_S = 60.0  # the hand drifting in before a stroke without rest ...
+DRIFT_S = 0.4  # ... for this long
 FIELD = (np.array([-160.0, 130.0, -90.0]), np.array([160.0, 370.0, 90.0]))
 """Where a stroke starts and ends: inside the field with a margin (Leap frame, mm)."""
 GESTURES = (*SWIPE_DIRECTIONS, "rotate")
@@ -90,7 +91,7 @@ def frames(stroke: Stroke, hand_id: int = 1) -> list[tuple[float, list[dict]]]:
     else:  # drifting in slowly, along the stroke's way (or up to a rotate)
         way = stroke.displacement if stroke.displacement.any() else np.array([0.0, 1.0, 0.0])
         step = way / np.linalg.norm(way) * DRIFT_MM_S / RATE_HZ
-        for i in range(24, 0, -1):
+        for i in range(int(DRIFT_S * RATE_HZ), 0, -1):
             add(stroke.start - i * step, 0.0)
     s = min_jerk(np.arange(1, int(stroke.seconds * RATE_HZ) + 1) / (stroke.seconds * RATE_HZ))
     rotate = stroke.gesture == "rotate"

@@ -78,7 +78,7 @@ from cbgo.services.dynamic_gesture.stroke import (
 )
 from cbgo.simuser.motion import CENTRE_MM, min_jerk
 from cbgo.simuser.scenario import IDLE_MOTIONS, Episode, GestureStep, Scenario
-from cbgo.simuser.user import SWIPE_DIRECTIONS, SWIPE_WAY_LENGTH, SimulatedUser, swipe_way
+from cbgo.simuser.user import SWIPE_WAY_LENGTH, SimulatedUser, swipe_way
 from cbgo.wire import DYNAMIC_GESTURES
 
 OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture of ours
@@ -889,7 +889,7 @@ FORWARD = np.array([0.0, 0.0, -1.0])
 """Away from the person, over a desk sensor (the Leap frame's z points at the person)."""
 GEOMETRY = ("arc_sideways", "drift_sideways", "arc_forward", "drift_forward")
 """How a swipe's path leaves its direction, in units of its length (`geometry`), on the axes
-`user.swipe_sideways` and `user.FORWARD`: printed by way (`print_geometry`)."""
+`swipe_sideways` and `FORWARD`: printed by way (`print_geometry`)."""
 
 
 NEIGHBOUR_S = 1.5
@@ -954,7 +954,7 @@ def swipe_sideways(swipe: str, side: str) -> np.ndarray:
     a swipe up or down, so that a left hand's swipes are measured as a right hand's mirror
     image.
     """
-    if abs(SWIPE_DIRECTIONS[swipe][0]) > 0.5:
+    if swipe_way(swipe, side) in ("across", "outward"):
         return np.array([0.0, 1.0, 0.0])
     return np.array([-1.0 if side == "right" else 1.0, 0.0, 0.0])
 
