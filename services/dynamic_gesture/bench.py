@@ -351,7 +351,7 @@ def run_real_folds(args: argparse.Namespace) -> int:
                 sim_train, sim_calib, recordings, args.folds, return_s)):
             library = Path(tmp) / f"group-{k + 1}.json"
             save_default(library, classifier.templates, classifier.calibration,
-                         train.observation(), {"held_out_people": sorted(held)})
+                         train.observation(), {"held_out_people": sorted(held)}, classifier.net)
             people = {str(person) for person in held}
             trials = realbench.pick_trials([t for t in all_trials if t.person in people],
                                            args.per_class, args.seed + k, args.others)

@@ -4,8 +4,10 @@
   --out`` writes it; plain ``cbgo train dynamic`` writes
   ``<data_dir>/models/dynamic-gesture.json``, which then stands in for it): the templates of
   ``swipe_up, swipe_down, swipe_left, swipe_right, rotate``, the calibration weights shared
-  by all templates, the observation settings they were learned with, and a summary of the
-  training run. Each default template names its mirror image (``mirror``: swipe_left's is
+  by all templates, the trajectory network that gives the shipped gestures a second opinion
+  (``trajectory_net``, `trajnet`; a library without it uses the templates alone), the
+  observation settings they were learned with, and a summary of the training run. Each
+  default template names its mirror image (``mirror``: swipe_left's is
   swipe_right): they are learned in the right hand's space, and a left hand's strokes are
   matched mirrored (`classifier.mirror_rows`). A library without the field (before 2026-12)
   matches every stroke as performed.
@@ -36,6 +38,7 @@ from cbgo.services.dynamic_gesture.classifier import (
     Template,
     calibration_from_dict,
 )
+from cbgo.services.dynamic_gesture.trajnet import TrajectoryNet
 
 FORMAT = "cbgo-dynamic-gestures"
 USER_FORMAT = "cbgo-dynamic-gesture"
@@ -72,11 +75,13 @@ def user_dir(data_dir: Path) -> Path:
 
 def save_default(path: Path, templates: list[Template],
                  calibration: Calibration | NeuralCalibration,
-                 observation: dict, training: dict) -> None:
+                 observation: dict, training: dict, net: TrajectoryNet | None = None) -> None:
     """Writes the default library (atomically: a reader never sees half a file)."""
     data = {"format": FORMAT, "version": VERSION, "observation": observation,
             "calibration": calibration.to_dict(),
             "templates": [t.to_dict() for t in templates], "training": training}
+    if net is not None:
+        data["trajectory_net"] = net.to_dict()
     _write_json(Path(path), data)
 
 
@@ -132,6 +137,8 @@ def read_default(path: Path = DEFAULT_PATH
         if data.get("format") != FORMAT or int(data.get("version", 0)) > VERSION:
             raise ValueError(f"not a {FORMAT} file of version <= {VERSION}")
         templates = [Template.from_dict(t) for t in data["templates"]]
+        if "trajectory_net" in data:
+            TrajectoryNet.from_dict(data["trajectory_net"])  # fails here, not in the service
         return templates, calibration_from_dict(data["calibration"]), data
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise ConfigError(f"cannot load the dynamic-gesture templates {path} ({e}); run "
@@ -166,6 +173,9 @@ class Library:
         user_folder: the folder of user templates (None: defaults only).
         templates: the loaded templates, defaults first, in a stable order.
         calibration: the shared calibration of the default library.
+        net: the default library's trajectory network (None: it has none).
+        replaced: the default gestures a user template replaced (the network's opinion on
+            them is left out: it learned the shipped version).
         skipped: user files that could not be loaded, with the reason.
     """
 
@@ -173,6 +183,8 @@ class Library:
     user_folder: Path | None
     templates: list[Template] = field(default_factory=list)
     calibration: Calibration | NeuralCalibration = field(default_factory=Calibration)
+    net: TrajectoryNet | None = None
+    replaced: set[str] = field(default_factory=set)
     skipped: dict[str, str] = field(default_factory=dict)
     _stamp: tuple = ()
 
@@ -182,7 +194,9 @@ class Library:
         Raises:
             ConfigError: the default library is missing or malformed.
         """
-        templates, self.calibration, _ = read_default(self.default_path)
+        templates, self.calibration, data = read_default(self.default_path)
+        net = data.get("trajectory_net")
+        self.net = None if net is None else TrajectoryNet.from_dict(net)
         by_name = {t.name: t for t in templates}
         self.skipped = {}
         self._stamp = self._scan()
@@ -194,6 +208,7 @@ class Library:
                 continue
             by_name[template.name] = template
         self.templates = list(by_name.values())
+        self.replaced = {t.name for t in templates if by_name[t.name] is not t}
         return self
 
     def _files(self) -> list[Path]:
@@ -216,7 +231,8 @@ class Library:
 
     def classifier(self, dtw: str = "exact") -> Classifier:
         """Returns a classifier over the loaded templates."""
-        return Classifier(self.templates, self.calibration, dtw)
+        known = {t.name for t in self.templates} - self.replaced
+        return Classifier(self.templates, self.calibration, dtw, self.net, known)
 
     @property
     def names(self) -> list[str]:

@@ -16,7 +16,9 @@
    every window the service would evaluate (mid-stroke and final) of the calibration users —
    other simulated people — and of the real people, gestures and non-gestures alike, so the
    probabilities (``none`` included) are calibrated, to a prior in which the "none" windows
-   together weigh `NONE_WEIGHT` of the gestures'. With ``--folds N`` the real people are
+   together weigh `NONE_WEIGHT` of the gestures'. The trajectory network (`trajnet`), a
+   second opinion that reads each window's whole path, learns from the same windows and the
+   training users' too, with the same weights. With ``--folds N`` the real people are
    also split into N groups first, and each group is scored by a library learned without
    it: the leave-people-out figures.
 5. The library goes to ``<data dir>/models/dynamic-gesture.json`` (which the service then uses
@@ -40,7 +42,7 @@ import numpy as np
 
 from cbgo import metrics
 from cbgo.config import data_dir
-from cbgo.services.dynamic_gesture import realbench, shrec, simdata
+from cbgo.services.dynamic_gesture import realbench, shrec, simdata, trajnet
 from cbgo.services.dynamic_gesture.classifier import (
     MIRROR,
     MIRROR_X,
@@ -160,9 +162,24 @@ def labelled_features(classifier: Classifier, users: list[simdata.UserData],
     return feats, labels
 
 
-def evaluate(classifier: Classifier, feats: list[np.ndarray], labels: list[int]) -> dict:
-    """Returns balanced accuracy, ECE, log-loss and the confusion of feature rows."""
-    probs = np.array([classifier.calibration.probabilities(f) for f in feats])
+def labelled_probabilities(classifier: Classifier, users: list[simdata.UserData],
+                           finals_only: bool = False) -> tuple[np.ndarray, list[int]]:
+    """Returns the classifier's probabilities and true-alternative indices of users' windows.
+
+    As the service answers: the trajectory network's opinion blended in.
+    """
+    index = {name: i for i, name in enumerate(classifier.names)}
+    probs, labels = [], []
+    for user in users:
+        for lw in user.windows:
+            if lw.window.final or not finals_only:
+                probs.append(classifier.classify(lw.window))
+                labels.append(index.get(lw.truth, index[NONE]))
+    return np.array(probs), labels
+
+
+def evaluate(classifier: Classifier, probs: np.ndarray, labels: list[int]) -> dict:
+    """Returns balanced accuracy, ECE, log-loss and the confusion of windows' probabilities."""
     y = np.asarray(labels)
     n = len(classifier.names)
     pred = probs.argmax(1)
@@ -182,17 +199,21 @@ def none_weights(labels: list[int], none_index: int, share: float = NONE_WEIGHT)
 
 def fit(sim_train: list, sim_calib: list, real_people: list, calibration_seed: int = 0
         ) -> Classifier:
-    """Learns the templates and fits the calibration (see the module docstring).
+    """Learns the templates, fits the calibration and the trajectory network (module docstring).
 
-    ``calibration_seed`` draws the calibration network's initial weights: the fit lands in a
-    different optimum for each, and the held-out real people read a few tenths of a point
-    apart (`cbgo train dynamic --calibration-seed`).
+    ``calibration_seed`` draws both networks' initial weights: each fit lands in a different
+    optimum, and the held-out real people read a few tenths of a point apart (`cbgo train
+    dynamic --calibration-seed`).
     """
     classifier = Classifier(learn_templates(sim_train + real_people), Calibration())
     feats, labels = labelled_features(classifier, sim_calib + real_people)
     weights = none_weights(labels, classifier.names.index(NONE))
     classifier.calibration = fit_neural_calibration(feats, labels, weights=weights,
                                                     seed=calibration_seed)
+    every = [lw for user in sim_train + sim_calib + real_people for lw in user.windows]
+    nones = [int(lw.truth not in classifier.names[:-1]) for lw in every]
+    classifier.net = trajnet.fit([lw.window for lw in every], [lw.truth for lw in every],
+                                 classifier.names, none_weights(nones, 1), calibration_seed)
     return classifier
 
 
@@ -373,12 +394,12 @@ def train(users: int, calib_users: int, reps: int, seed: int, jobs: int,
     summary["calibration_seed"] = calibration_seed
     summary["demonstrations"] = {name: len(w) for name, w in
                                  demonstrations(sim_train + real_people).items()}
-    figures = evaluate(classifier, *labelled_features(classifier, sim_calib + real_people,
-                                                      finals_only=True))
+    figures = evaluate(classifier, *labelled_probabilities(classifier, sim_calib + real_people,
+                                                           finals_only=True))
     summary["calibration_set"] = {k: v for k, v in figures.items() if k != "confusion"}
     summary["calibration_set"]["confusion"] = figures["confusion"].tolist()
     summary["seconds"] = round(time.perf_counter() - t0, 1)
-    return classifier.templates, classifier.calibration, summary
+    return classifier, summary
 
 
 def print_leave_people_out(block: dict, misses: bool = False) -> None:
@@ -422,14 +443,15 @@ def print_leave_people_out(block: dict, misses: bool = False) -> None:
 def run(args: argparse.Namespace) -> int:
     """Trains, prints the figures and writes the library."""
     out = args.out or trained_path(data_dir())
-    templates, calibration, summary = train(args.users, args.calib_users, args.reps, args.seed,
+    classifier, summary = train(args.users, args.calib_users, args.reps, args.seed,
                                             args.jobs, args.real, args.folds,
                                             streams_per_person=args.streams,
                                             calibration_seed=args.calibration_seed)
     lpo = summary.get("leave_people_out", {})
     saved = {**summary, "leave_people_out": {k: v for k, v in lpo.items() if k != "misses"}
              } if lpo else summary
-    save_default(out, templates, calibration, observation(), saved)
+    templates = classifier.templates
+    save_default(out, templates, classifier.calibration, observation(), saved, classifier.net)
     if "leave_people_out" in summary:
         print_leave_people_out(summary["leave_people_out"], args.misses)
     figures = summary["calibration_set"]
