@@ -493,7 +493,8 @@ def run(args: argparse.Namespace) -> int:
     for name, ms in c["dtw_ms_per_library"].items():
         print(f"  DTW against the library, {name}: {ms:.3f} ms (median)")
     if c["fastdtw"] is not None:
-        fast = Classifier(classifier.templates, classifier.calibration, dtw="fastdtw")
+        fast = Classifier(classifier.templates, classifier.calibration, "fastdtw",
+                          classifier.net, classifier.net_known)
         fast_acc = score(fast, users, [])["final"]["balanced_accuracy"]
         c["fastdtw_balanced_accuracy"] = fast_acc
         print(f"  fastdtw cost error vs exact: median {c['fastdtw_error_median']:.2%}, max "

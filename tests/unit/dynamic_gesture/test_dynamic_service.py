@@ -143,3 +143,9 @@ def test_recording_from_a_file_adds_to_earlier_takes_unless_replaced(synth, tmp_
     assert demonstrate.list_gestures()[0]["takes"] == 2
     assert demonstrate.run(argparse.Namespace(**{**args, "name": "no gesture"})) == 2
     assert demonstrate.run(argparse.Namespace(**{**args, "takes": 3})) == 1
+
+
+def test_status_names_the_gestures_the_trajectory_network_gives_an_opinion_on(bus):
+    ok, status = bus.query("status", None)
+    assert ok and status["second_opinion"] == ["swipe_up", "swipe_down", "swipe_left",
+                                               "swipe_right", "rotate"]
