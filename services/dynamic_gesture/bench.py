@@ -421,6 +421,11 @@ def run_plain_strokes(args: argparse.Namespace) -> int:
     return 0
 
 
+def _chosen_library(args: argparse.Namespace) -> Path | None:
+    """Returns the ``--templates`` file the live services must use (None: the installed one)."""
+    return None if args.templates == DEFAULT_PATH else args.templates
+
+
 def run(args: argparse.Namespace) -> int:
     """Runs the three parts and prints their figures (or the real-data bench)."""
     if args.plot is not None and args.realism is None:
@@ -431,12 +436,13 @@ def run(args: argparse.Namespace) -> int:
     if args.real is not None:
         return realbench.run_real(args.real, args.split, args.per_class, args.streams,
                                   args.seed, args.json, args.mirror, args.stream_returns,
-                                  others=args.others)
+                                  others=args.others, library=_chosen_library(args))
     if args.live_sim > 0:
         trials = realbench.simulated_trials(args.live_sim, args.seed,
                                             simdata.RANGES[args.ranges])
         result = realbench.play_live(trials, [], "simulated",
-                                     f"{args.live_sim} simulated {args.ranges} users")
+                                     f"{args.live_sim} simulated {args.ranges} users",
+                                     library=_chosen_library(args))
         return realbench.report_live(result, args.json, synthetic=True)
     if args.replay_sim > 0:
         return run_replay_sim(args)

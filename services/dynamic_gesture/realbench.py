@@ -665,11 +665,12 @@ def stream_sets(device: str, trials: list[Trial], sequences: list[shrec.Sequence
 
 def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
              json_path: Path | None, mirror: bool = False, returns: bool = False,
-             log=print, others: int | None = None) -> int:
+             log=print, others: int | None = None, library: Path | None = None) -> int:
     """The whole real-data bench (see the module docstring).
 
     `mirror`: as left hands; `returns`: LeapJS streams with a return move after each swipe;
-    `others`: how many recordings of the other gestures (`pick_trials`).
+    `others`: how many recordings of the other gestures (`pick_trials`); `library`: a library
+    file the service uses instead of the installed one (`play_live`).
     """
     device, all_trials, sequences = real_trials(root, split)
     if device == "shrec17" and split == "test":
@@ -680,7 +681,8 @@ def run_real(root: Path, split: str, per_class: int, streams: int, seed: int,
     where = f"{device}'s {split} split" if device == "shrec17" else device
     if mirror:
         trials, streams_played, where = mirrored_set(trials, streams_played, where)
-    return report_live(play_live(trials, streams_played, device, where, log), json_path, log)
+    return report_live(play_live(trials, streams_played, device, where, log, library),
+                       json_path, log)
 
 
 def play_live(trials: list[Trial], streams: list[tuple], device: str, where: str,
