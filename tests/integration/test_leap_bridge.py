@@ -122,5 +122,8 @@ def test_an_mcap_recording_is_replayed_with_its_hands_order_and_pace(stack, tmp_
     replayed = palms[start:start + len(wanted)]
     assert [p for _, p in replayed] == wanted
     stamps = np.array([t for t, _ in replayed])
-    assert abs((stamps[-1] - stamps[0]) - (len(wanted) - 1) / 60.0) < 0.05
+    # the pace is the slope of arrival time over frame number: one late delivery on a busy
+    # machine (0.1 s at the last frame was seen) moves the end points, not the slope
+    slope = np.polyfit(np.arange(len(stamps)), stamps, 1)[0]
+    assert abs(slope * 60.0 - 1.0) < 0.03
     assert all(m["source"] == "replay" for _, m in items)
