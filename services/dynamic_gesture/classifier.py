@@ -510,24 +510,36 @@ leave-people-out, over three seeds (README): an equal share on final windows too
 the swipes' final windows unsure (0.8 points fewer right by final windows)."""
 
 
-def blend(probs: np.ndarray, names: list[str], net_probs: np.ndarray, net_names: list[str],
-          known: set[str], dtw_weight: float = DTW_WEIGHT[False]) -> np.ndarray:
-    """Returns the templates' probabilities with the trajectory network's multiplied in.
+def net_rows(names: list[str], net_names: list[str], known: set[str]
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Returns where the alternatives the network speaks for stand in `names` and `net_names`.
 
     Args:
-        probs: the templates' probabilities over `names` (templates, then ``none``).
-        names: the classifier's alternatives.
-        net_probs: the network's probabilities over `net_names`.
+        names: the classifier's alternatives (templates, then ``none``).
         net_names: the network's alternatives (its gestures, then ``none``).
         known: the names whose template is the one the network learned with (a user's own
             version of a shipped gesture is not); ``none`` always is.
-        dtw_weight: the templates' share of the blended log-probability.
     """
     shared = [i for i, n in enumerate(names) if n in net_names and (n in known or n == NONE)]
+    return np.array(shared, dtype=int), np.array([net_names.index(names[i]) for i in shared],
+                                                 dtype=int)
+
+
+def blend(probs: np.ndarray, net_probs: np.ndarray, rows: tuple[np.ndarray, np.ndarray],
+          dtw_weight: float = DTW_WEIGHT[False]) -> np.ndarray:
+    """Returns the templates' probabilities with the trajectory network's multiplied in.
+
+    Args:
+        probs: the templates' probabilities over the classifier's alternatives.
+        net_probs: the network's probabilities over its own.
+        rows: where the alternatives the network speaks for stand in each (`net_rows`).
+        dtw_weight: the templates' share of the blended log-probability.
+    """
+    shared, theirs = rows
     mass = float(probs[shared].sum())
     if len(shared) < 2 or mass <= 0.0:
         return probs
-    theirs = net_probs[[net_names.index(names[i]) for i in shared]]
+    theirs = net_probs[theirs]
     log = (dtw_weight * np.log(np.maximum(probs[shared] / mass, 1e-12))
            + (1.0 - dtw_weight) * np.log(np.maximum(theirs / theirs.sum(), 1e-12)))
     mixed = np.exp(log - log.max())
@@ -574,6 +586,14 @@ class Classifier:
         self.handed = self.mirror_rows >= 0  # templates learned in the right hand's space
         self.net = net
         self.net_known = set(names) if net_known is None else set(net_known)
+        self.net_rows = None if net is None else net_rows(self.names, net.names, self.net_known)
+
+    @property
+    def second_opinion(self) -> list[str]:
+        """The gestures the trajectory network gives an opinion on ([]: no network)."""
+        if self.net_rows is None:
+            return []
+        return [self.names[i] for i in self.net_rows[0] if self.names[i] != NONE]
 
     @property
     def implementation(self) -> str:
@@ -631,9 +651,8 @@ class Classifier:
                                                              peak_speed, side))
         if self.net is None:
             return probs
-        return blend(probs, self.names, self.net.probabilities(obs, final, pose_change,
-                                                               peak_speed, side),
-                     self.net.names, self.net_known, DTW_WEIGHT[bool(final)])
+        return blend(probs, self.net.probabilities(obs, final, pose_change, peak_speed, side),
+                     self.net_rows, DTW_WEIGHT[bool(final)])
 
     def window_features(self, window) -> np.ndarray:
         """Returns the feature rows of a `stroke.Window`."""

@@ -185,14 +185,6 @@ class DynamicGesture(Service):
             except ConfigError as e:
                 self.ctx.counters.error("reload", str(e))
 
-    def _second_opinion(self) -> list[str]:
-        """Returns the gestures the trajectory network gives an opinion on ([]: none)."""
-        net = self.classifier.net
-        if net is None:
-            return []
-        return [n for n in self.classifier.names[:-1] if n in net.names
-                and n in self.classifier.net_known]
-
     def status_extra(self) -> dict:
         """Adds the templates in use and the classification cost."""
         ms = np.asarray(self.classify_ms) if self.classify_ms else np.zeros(1)
@@ -203,7 +195,7 @@ class DynamicGesture(Service):
                 "returns": self.returns.returns,
                 "windows": self.windows, "reloads": self.reloads,
                 "dtw": self.classifier.implementation,
-                "second_opinion": self._second_opinion(),
+                "second_opinion": self.classifier.second_opinion,
                 "classify_ms": {"p50": float(np.median(ms)),
                                 "p99": float(np.percentile(ms, 99))}}
 

@@ -149,17 +149,22 @@ def learn_templates(users: list[simdata.UserData]) -> list[Template]:
     return templates
 
 
+def labelled_windows(classifier: Classifier, users: list[simdata.UserData],
+                     finals_only: bool = False) -> tuple[list, list[int]]:
+    """Returns the users' windows and each one's truth as an index of the classifier's names.
+
+    With `finals_only`, the final windows only; a truth the classifier lacks is ``none``.
+    """
+    index = {name: i for i, name in enumerate(classifier.names)}
+    chosen = [lw for user in users for lw in user.windows if lw.window.final or not finals_only]
+    return [lw.window for lw in chosen], [index.get(lw.truth, index[NONE]) for lw in chosen]
+
+
 def labelled_features(classifier: Classifier, users: list[simdata.UserData],
                       finals_only: bool = False) -> tuple[list[np.ndarray], list[int]]:
     """Returns the feature rows and true-alternative indices of the users' windows."""
-    index = {name: i for i, name in enumerate(classifier.names)}
-    feats, labels = [], []
-    for user in users:
-        for lw in user.windows:
-            if lw.window.final or not finals_only:
-                feats.append(classifier.window_features(lw.window))
-                labels.append(index.get(lw.truth, index[NONE]))
-    return feats, labels
+    windows, labels = labelled_windows(classifier, users, finals_only)
+    return [classifier.window_features(w) for w in windows], labels
 
 
 def labelled_probabilities(classifier: Classifier, users: list[simdata.UserData],
@@ -168,14 +173,8 @@ def labelled_probabilities(classifier: Classifier, users: list[simdata.UserData]
 
     As the service answers: the trajectory network's opinion blended in.
     """
-    index = {name: i for i, name in enumerate(classifier.names)}
-    probs, labels = [], []
-    for user in users:
-        for lw in user.windows:
-            if lw.window.final or not finals_only:
-                probs.append(classifier.classify(lw.window))
-                labels.append(index.get(lw.truth, index[NONE]))
-    return np.array(probs), labels
+    windows, labels = labelled_windows(classifier, users, finals_only)
+    return np.array([classifier.classify(w) for w in windows]), labels
 
 
 def evaluate(classifier: Classifier, probs: np.ndarray, labels: list[int]) -> dict:
@@ -212,9 +211,9 @@ def fit(sim_train: list, sim_calib: list, real_people: list, calibration_seed: i
                                                     seed=calibration_seed)
     every = [lw for user in sim_train + sim_calib + real_people for lw in user.windows]
     nones = [int(lw.truth not in classifier.names[:-1]) for lw in every]
-    classifier.net = trajnet.fit([lw.window for lw in every], [lw.truth for lw in every],
-                                 classifier.names, none_weights(nones, 1), calibration_seed)
-    return classifier
+    net = trajnet.fit([lw.window for lw in every], [lw.truth for lw in every],
+                      classifier.names, none_weights(nones, 1), calibration_seed)
+    return Classifier(classifier.templates, classifier.calibration, net=net)
 
 
 def fold_classifiers(sim_train: list, sim_calib: list, recordings: list, folds: int,
@@ -444,9 +443,9 @@ def run(args: argparse.Namespace) -> int:
     """Trains, prints the figures and writes the library."""
     out = args.out or trained_path(data_dir())
     classifier, summary = train(args.users, args.calib_users, args.reps, args.seed,
-                                            args.jobs, args.real, args.folds,
-                                            streams_per_person=args.streams,
-                                            calibration_seed=args.calibration_seed)
+                                args.jobs, args.real, args.folds,
+                                streams_per_person=args.streams,
+                                calibration_seed=args.calibration_seed)
     lpo = summary.get("leave_people_out", {})
     saved = {**summary, "leave_people_out": {k: v for k, v in lpo.items() if k != "misses"}
              } if lpo else summary

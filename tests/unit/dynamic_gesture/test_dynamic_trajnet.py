@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cbgo.services.dynamic_gesture import simdata, train
-from cbgo.services.dynamic_gesture.classifier import NONE, blend, mirrored
+from cbgo.services.dynamic_gesture.classifier import NONE, blend, mirrored, net_rows
 from cbgo.services.dynamic_gesture.library import (
     Library,
     read_default,
@@ -82,14 +82,15 @@ def test_the_blend_leaves_a_taught_gesture_and_a_replaced_one_their_templates_pr
     names = ["swipe_up", "swipe_down", "wave", NONE]
     probs = np.array([0.3, 0.1, 0.2, 0.4])
     net_probs = np.array([0.05, 0.05, 0.05, 0.05, 0.1, 0.7])  # over NAMES: mostly none
-    mixed = blend(probs, names, net_probs, NAMES, known={"swipe_up", "swipe_down"})
+    mixed = blend(probs, net_probs, net_rows(names, NAMES, known={"swipe_up", "swipe_down"}))
     assert mixed.sum() == pytest.approx(1.0)
     assert mixed[2] == pytest.approx(0.2)  # "wave": no network opinion
     assert mixed[3] > probs[3] and mixed[0] < probs[0]  # the network leans to none
-    kept = blend(probs, names, net_probs, NAMES, known={"swipe_down"})  # a user's swipe_up
+    users_swipe_up = net_rows(names, NAMES, known={"swipe_down"})
+    kept = blend(probs, net_probs, users_swipe_up)
     assert kept[0] == pytest.approx(0.3) and kept[2] == pytest.approx(0.2)
     # the two opinions are multiplied: geometric mean of the shares, renormalised
-    agree = blend(probs, names, net_probs, NAMES, known={"swipe_up", "swipe_down"},
+    agree = blend(probs, net_probs, net_rows(names, NAMES, known={"swipe_up", "swipe_down"}),
                   dtw_weight=1.0)
     assert np.allclose(agree, probs)
 
