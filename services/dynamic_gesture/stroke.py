@@ -682,6 +682,16 @@ class Segmenter:
 
 
 @dataclass
+class _Running:
+    """What a hand's running stroke has said so far (`ReturnFilter.observe`)."""
+
+    stroke: int
+    seen: float = 0.0  # its windows' highest gesture p
+    top: int = -1  # its last window's top gesture
+    surest: np.ndarray | None = None  # the probabilities of its surest published window
+
+
+@dataclass
 class _Gesture:
     t_end: float
     delta: np.ndarray
@@ -748,6 +758,11 @@ def _cos(a: np.ndarray, b: np.ndarray) -> float:
     return float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9)
 
 
+def _top_p(probs: np.ndarray) -> float:
+    """Returns the probability of the most probable gesture (``none``, last, left out)."""
+    return float(np.max(probs[:-1]))
+
+
 def _turns(delta: np.ndarray) -> bool:
     """Whether a displacement is mostly a turn: its k·roll beyond its distance in space."""
     return len(delta) > 3 and abs(float(delta[3])) > float(np.linalg.norm(delta[:3]))
@@ -793,8 +808,7 @@ class ReturnFilter:
         self.within_s, self.cos_max, self.faster, self.sure = within_s, cos_max, faster, sure
         self.farther = farther
         self.last: dict[int, _Gesture] = {}
-        # hand → (running stroke, its highest p so far, its last window's top gesture)
-        self.running: dict[int, tuple[int, float, int]] = {}
+        self.running: dict[int, _Running] = {}  # hand → what its running stroke said
         self.returns = 0
 
     def is_return(self, window: Window) -> bool:
@@ -819,8 +833,29 @@ class ReturnFilter:
 
     def confirms(self, window: Window, top: int) -> bool:
         """Whether the window before `window` in its stroke read the same top gesture."""
-        stroke, _, previous = self.running.get(window.hand_id, (None, 0.0, None))
-        return stroke == window.stroke and previous == top
+        running = self.running.get(window.hand_id)
+        return running is not None and running.stroke == window.stroke and running.top == top
+
+    def published(self, window: Window, probs: np.ndarray) -> None:
+        """Records a running window that was published with these probabilities."""
+        running = self.running.get(window.hand_id)
+        if running is not None and running.stroke == window.stroke and (
+                running.surest is None or _top_p(probs) > _top_p(running.surest)):
+            running.surest = probs
+
+    def stroke_answer(self, window: Window, probs: np.ndarray) -> np.ndarray:
+        """Returns a final window's answer for its whole stroke (call before `observe`).
+
+        The stroke's surest published window, this final one or one published mid-stroke:
+        a final window that ends on the slowing hand often reads less sure than the stroke
+        read while it ran, and a consumer that takes one answer per stroke (the final one)
+        must not lose a gesture it was already told of.
+        """
+        running = self.running.get(window.hand_id)
+        if (running is None or running.stroke != window.stroke or running.surest is None
+                or _top_p(running.surest) <= _top_p(probs)):
+            return probs
+        return running.surest
 
     def observe(self, window: Window, p_gesture: float, top: int = -1) -> None:
         """Records a classified window's top gesture probability (0 if it was no gesture).
@@ -831,10 +866,12 @@ class ReturnFilter:
         `CONTINUE_GAP_S`, before any return) extends it instead. `top`, the window's top
         gesture, is what the stroke's next window must read to be confirmed (`confirms`).
         """
-        stroke, seen, _ = self.running.get(window.hand_id, (window.stroke, 0.0, -1))
-        seen = max(p_gesture, seen if stroke == window.stroke else 0.0)
+        running = self.running.get(window.hand_id)
+        if running is None or running.stroke != window.stroke:
+            running = self.running[window.hand_id] = _Running(window.stroke)
+        seen = running.seen = max(p_gesture, running.seen)
         if not window.final:
-            self.running[window.hand_id] = (window.stroke, seen, top)
+            running.top = top
             return
         self.running.pop(window.hand_id, None)
         delta = window.obs[-1] - window.obs[0]
@@ -863,7 +900,9 @@ def reported(windows, returns: ReturnFilter, classify):
     (`ReturnFilter.confirms`). A stroke is recorded as a gesture, whose reversal is its
     return, if its final window's most probable gesture has p ≥ `MIGHT_P` or is more probable
     than ``none`` (what might have been a gesture is followed by what might be its return), or
-    if one of its running windows was reported: a consumer was told of it.
+    if one of its running windows was reported: a consumer was told of it. A final window
+    is published with its stroke's answer (`ReturnFilter.stroke_answer`): its own
+    probabilities, or those of a surer window of its stroke published mid-stroke.
     """
     for window in windows:
         if returns.is_return(window):
@@ -874,9 +913,12 @@ def reported(windows, returns: ReturnFilter, classify):
         published = window.final or (top >= partial_p(window) and returns.confirms(window, best))
         # a final window that might be a gesture, or any published one, makes its stroke one
         gesture = (top >= MIGHT_P or top > probs[-1]) if window.final else published
+        answer = returns.stroke_answer(window, probs) if window.final else probs
         returns.observe(window, top if gesture else 0.0, best)
         if published:
-            yield window, probs
+            if not window.final:
+                returns.published(window, probs)
+            yield window, answer
 
 
 def partial_p(window: Window) -> float:

@@ -97,6 +97,37 @@ def test_a_running_window_is_reported_only_when_the_one_before_read_the_same_ges
     assert kept == windows[2:]
 
 
+def test_a_final_window_answers_for_its_stroke_with_its_surest_published_window(synth):
+    # A final window that ends on the slowing hand often reads less sure than the stroke read
+    # while it ran; a consumer taking one answer per stroke must not lose what it was told.
+    windows = synth.feed(Segmenter(), synth.trajectory([REST, SWIPE_UP, ("hold", 0.5)]))
+    running = [id(w) for w in windows if not w.final]
+    assert len(running) >= 3
+    sure = {id(windows[1]): [0.95, 0.03, 0.02], id(windows[2]): [0.8, 0.1, 0.1]}
+
+    def fading(w):  # swipe_up, surest in its second window; the final window reads none
+        return np.array([0.2, 0.1, 0.7] if w.final else sure.get(id(w), [0.7, 0.1, 0.2]))
+
+    answers = list(reported(windows, ReturnFilter(1.5), fading))
+    assert answers[-1][0] is windows[-1] and answers[-1][0].final
+    assert np.allclose(answers[-1][1], [0.95, 0.03, 0.02])
+    assert [w for w, _ in answers] == windows[1:]  # still one final window, when it ends
+
+    def surer_at_the_end(w):  # a final window surer than any before keeps its own answer
+        return np.array([0.02, 0.97, 0.01] if w.final else sure.get(id(w), [0.7, 0.1, 0.2]))
+
+    answers = list(reported(windows, ReturnFilter(1.5), surer_at_the_end))
+    assert np.allclose(answers[-1][1], [0.02, 0.97, 0.01])
+
+    def never_published(w):  # sure only in windows never published (unconfirmed): its own
+        first = id(w) == running[0]
+        return np.array([0.2, 0.1, 0.7] if not first else [0.95, 0.03, 0.02])
+
+    answers = list(reported(windows, ReturnFilter(1.5), never_published))
+    assert [w.final for w, _ in answers] == [True]
+    assert np.allclose(answers[-1][1], [0.2, 0.1, 0.7])
+
+
 def test_a_stroke_under_way_when_its_hand_appears_is_reported_early_only_when_very_sure(synth):
     # What a hand does first is often the move that brings it into the field, or a wind-up.
     windows = synth.feed(Segmenter(), synth.trajectory([SWIPE_UP, ("hold", 0.5)]))
