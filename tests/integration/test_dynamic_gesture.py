@@ -57,6 +57,17 @@ def test_each_simulated_stroke_is_published_with_its_gesture_winning(running):
     expected = [s.gesture for e in load_scenario("dynamic-all").episodes for s in e.gestures]
     won = [winner(m) for m in finals(messages) if winner(m) != "none"]
     assert won == expected, [(winner(m), m["window"]) for m in finals(messages)]
+    # a final message answers for its stroke: never less sure than one published before it
+    for last in (m for m in messages if m.get("final")):
+        stroke = [m for m in messages if m["hand_id"] == last["hand_id"]
+                  and m["window"][0] == last["window"][0] and not m.get("final")]
+        assert all(gesture_p(last) >= gesture_p(m) for m in stroke), (last, stroke)
+
+
+def gesture_p(msg):
+    """The probability of the message's most probable gesture (`none` left out)."""
+    return max(p for n, p in zip(msg["names"], msg["probs"], strict=True)
+               if n != wire.NO_GESTURE)
 
 
 def test_a_hand_held_still_gives_no_gesture(running):
