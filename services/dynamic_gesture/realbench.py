@@ -352,7 +352,9 @@ def run_trials(player: _Player, trials: list[Trial], device: str, log=print) -> 
             summary = player.summaries[n_sum] if len(player.summaries) > n_sum else {}
         reported = _reported(messages)
         dynamic = max(reported, key=lambda r: r[1])[0] if reported else NOTHING
+        finals = [r for r in reported if r[2].get("final")]  # one answer per stroke
         rows.append(trial.row(dynamic=dynamic, first=reported[0][0] if reported else NOTHING,
+                              finals=max(finals, key=lambda r: r[1])[0] if finals else NOTHING,
                               summary=_summary_gesture(summary),
                               reports=[r[0] for r in reported]))
         log(f"  [{i + 1}/{len(trials)}] {trial.gesture} (person {trial.person}): dynamic "
@@ -720,7 +722,7 @@ def report_live(result: dict, json_path: Path | None, log=print, synthetic: bool
 
     `synthetic`: the trials are simulated users' strokes, judged against the synthetic goal.
     """
-    for field in ("dynamic", "first", "summary"):
+    for field in ("dynamic", "finals", "first", "summary"):
         result[field] = score(result["trials"], field)
         _print_score(field, result[field])
     if synthetic:

@@ -259,8 +259,8 @@ def test_the_live_score_says_how_far_other_people_could_move_it():
 
 
 def test_the_live_report_names_gesture_messages_no_summary_holds(capsys):
-    rows = [{"truth": "swipe_up", "dynamic": "swipe_up", "first": "swipe_up",
-             "summary": realbench.NOTHING, "person": "a"}]
+    rows = [{"truth": "swipe_up", "dynamic": "swipe_up", "finals": "swipe_up",
+             "first": "swipe_up", "summary": realbench.NOTHING, "person": "a"}]
     lines = []
     result = {"trials": rows, "streams": [], "latency_ms": {},
               "episode_stray": {"late": 1, "outside": 0}}
@@ -273,7 +273,7 @@ def test_the_live_report_names_gesture_messages_no_summary_holds(capsys):
 
 
 def test_the_live_report_judges_issue_14s_goals_and_a_short_stream_sample_not_at_all():
-    rows = [{"truth": t, "dynamic": t, "first": t, "summary": t, "person": p}
+    rows = [{"truth": t, "dynamic": t, "finals": t, "first": t, "summary": t, "person": p}
             for p in "abc" for t in ("swipe_up", "swipe_down")]
     rows[0]["summary"] = realbench.NOTHING  # person a's swipe_up missing from its summary
     stream = {"strokes": 10, "recalled": 9, "false_triggers": 3, "other_gesture_triggers": 0,
