@@ -130,6 +130,7 @@ class DynamicGesture(Service):
         finally:
             self.store.served(path, stamps)  # a broken library is reported once, not each poll
         self.classifier = self.library.classifier(self.settings.dtw)
+        self.returns.forget_running()  # their windows' probabilities were over the old names
         for name, reason in self.library.skipped.items():
             self.ctx.log.warning("skipped user gesture file %s: %s", name, reason)
         self.ctx.log.info("templates: %s", ", ".join(

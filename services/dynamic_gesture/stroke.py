@@ -853,9 +853,13 @@ class ReturnFilter:
         """
         running = self.running.get(window.hand_id)
         if (running is None or running.stroke != window.stroke or running.surest is None
-                or _top_p(running.surest) <= _top_p(probs)):
+                or len(running.surest) != len(probs) or _top_p(running.surest) <= _top_p(probs)):
             return probs
         return running.surest
+
+    def forget_running(self) -> None:
+        """Forgets what the running strokes said: a reloaded library names other gestures."""
+        self.running.clear()
 
     def observe(self, window: Window, p_gesture: float, top: int = -1) -> None:
         """Records a classified window's top gesture probability (0 if it was no gesture).

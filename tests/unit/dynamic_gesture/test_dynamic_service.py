@@ -94,6 +94,29 @@ def test_reload_and_polling_pick_up_a_taught_gesture(bus, synth, tmp_path):
     assert status["reloads"] == 2
 
 
+def test_a_reload_mid_stroke_publishes_the_strokes_end_over_the_new_names(bus, synth,
+                                                                          tmp_path):
+    # A final message may carry a surer window of its stroke published before: not one whose
+    # probabilities were over the library's old names.
+    recorder = TakeRecorder(takes=2)
+    for take in range(2):
+        for t, p, r in synth.trajectory(SWIPE_UP, seed=take):
+            recorder.feed(10.0 * take + t, [synth.hand(p, r, hand_id=10 + take)])
+        recorder.feed(10.0 * take + 2.0, [])
+    frames = [synth.frame(T0 + t, [synth.hand(p, r)], i)
+              for i, (t, p, r) in enumerate(synth.trajectory(SWIPE_UP))]
+    out, reloaded = [], False
+    for frame in frames:
+        out += bus.feed(keys.HANDS_FRAME, frame)
+        if not reloaded and out:  # the stroke was published mid-stroke: now a new gesture
+            save_user_template(tmp_path, recorder.template("lift", "alice"))
+            assert bus.query("reload", {"v": 1})[0]
+            reloaded = True
+    assert reloaded and out[-1][1]["final"] and "lift" in out[-1][1]["names"]
+    for _, msg in out:
+        wire.validate(msg, wire.GESTURES_DYNAMIC, "cbgo/gestures/dynamic")
+
+
 def test_a_take_is_the_first_real_stroke_of_each_hand_appearance(synth):
     recorder = TakeRecorder(takes=3)
     twitch = [("hold", 0.5), ("move", 0.2, (0.0, 15.0, 0.0)), ("hold", 0.3)]
