@@ -789,6 +789,9 @@ class ReturnFilter:
     has one return: once one has come back `RETURNED_SHARE` of the way, only a stroke starting
     within `RETURN_GAP_S` of its end is still that return. A gesture made in two strokes (the
     hand slowed mid-way) is one gesture, whose return comes back over both (`observe`).
+    It also remembers what each hand's running stroke said: the top gesture its next window
+    must confirm (`confirms`) and its surest published window, which its final window answers
+    with if surer (`stroke_answer`).
 
     Args:
         within_s: how soon after a gesture's end a reversing stroke counts as its return
