@@ -688,7 +688,7 @@ class _Running:
     stroke: int
     seen: float = 0.0  # its windows' highest gesture p
     top: int = -1  # its last window's top gesture
-    surest: np.ndarray | None = None  # the probabilities of its surest published window
+    surest: np.ndarray | None = None  # its surest published window's probabilities (p: seen)
 
 
 @dataclass
@@ -756,11 +756,6 @@ def continues(delta: np.ndarray, previous: np.ndarray) -> bool:
 
 def _cos(a: np.ndarray, b: np.ndarray) -> float:
     return float(a @ b) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-9)
-
-
-def _top_p(probs: np.ndarray) -> float:
-    """Returns the probability of the most probable gesture (``none``, last, left out)."""
-    return float(np.max(probs[:-1]))
 
 
 def _turns(delta: np.ndarray) -> bool:
@@ -839,24 +834,18 @@ class ReturnFilter:
         running = self.running.get(window.hand_id)
         return running is not None and running.stroke == window.stroke and running.top == top
 
-    def published(self, window: Window, probs: np.ndarray) -> None:
-        """Records a running window that was published with these probabilities."""
-        running = self.running.get(window.hand_id)
-        if running is not None and running.stroke == window.stroke and (
-                running.surest is None or _top_p(probs) > _top_p(running.surest)):
-            running.surest = probs
-
-    def stroke_answer(self, window: Window, probs: np.ndarray) -> np.ndarray:
+    def stroke_answer(self, window: Window, probs: np.ndarray, top_p: float) -> np.ndarray:
         """Returns a final window's answer for its whole stroke (call before `observe`).
 
         The stroke's surest published window, this final one or one published mid-stroke:
         a final window that ends on the slowing hand often reads less sure than the stroke
         read while it ran, and a consumer that takes one answer per stroke (the final one)
-        must not lose a gesture it was already told of.
+        must not lose a gesture it was already told of. `top_p`: the final window's most
+        probable gesture's p.
         """
         running = self.running.get(window.hand_id)
         if (running is None or running.stroke != window.stroke or running.surest is None
-                or len(running.surest) != len(probs) or _top_p(running.surest) <= _top_p(probs)):
+                or len(running.surest) != len(probs) or running.seen <= top_p):
             return probs
         return running.surest
 
@@ -864,21 +853,27 @@ class ReturnFilter:
         """Forgets what the running strokes said: a reloaded library names other gestures."""
         self.running.clear()
 
-    def observe(self, window: Window, p_gesture: float, top: int = -1) -> None:
+    def observe(self, window: Window, p_gesture: float, top: int = -1,
+                probs: np.ndarray | None = None) -> None:
         """Records a classified window's top gesture probability (0 if it was no gesture).
 
         A stroke is recorded as a gesture when it ends, with the highest of these over its
         windows: a swipe reported mid-stroke whose end reads ``none`` was still reported. A
         gesture stroke that carries on the hand's last gesture (`continues`, within
         `CONTINUE_GAP_S`, before any return) extends it instead. `top`, the window's top
-        gesture, is what the stroke's next window must read to be confirmed (`confirms`).
+        gesture, is what the stroke's next window must read to be confirmed (`confirms`). A
+        running window's `probs` are kept while it is the stroke's surest (`stroke_answer`):
+        a running window's p_gesture is nonzero only when it was published.
         """
         running = self.running.get(window.hand_id)
         if running is None or running.stroke != window.stroke:
             running = self.running[window.hand_id] = _Running(window.stroke)
+        surer = p_gesture > running.seen
         seen = running.seen = max(p_gesture, running.seen)
         if not window.final:
             running.top = top
+            if surer and probs is not None:
+                running.surest = probs
             return
         self.running.pop(window.hand_id, None)
         delta = window.obs[-1] - window.obs[0]
@@ -920,11 +915,9 @@ def reported(windows, returns: ReturnFilter, classify):
         published = window.final or (top >= partial_p(window) and returns.confirms(window, best))
         # a final window that might be a gesture, or any published one, makes its stroke one
         gesture = (top >= MIGHT_P or top > probs[-1]) if window.final else published
-        answer = returns.stroke_answer(window, probs) if window.final else probs
-        returns.observe(window, top if gesture else 0.0, best)
+        answer = returns.stroke_answer(window, probs, top) if window.final else probs
+        returns.observe(window, top if gesture else 0.0, best, probs)
         if published:
-            if not window.final:
-                returns.published(window, probs)
             yield window, answer
 
 
