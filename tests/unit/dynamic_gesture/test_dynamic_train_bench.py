@@ -140,6 +140,14 @@ def test_a_users_style_is_named_by_the_halves_of_its_ranges():
     assert simdata.RANGES["default"].quarter(UserStyle()) == "typical/typical"
 
 
+def test_the_default_user_strokes_like_the_middle_of_the_population_fitted_to_real_people():
+    # the training range's swipes are the ones `--realism` matches with real people's
+    typical = UserStyle()
+    for value, (interval,) in ((typical.speed, simdata.TRAIN.speed),
+                               (typical.amplitude, simdata.TRAIN.amplitude)):
+        assert abs(value - sum(interval) / 2) <= 0.05 * sum(interval) / 2
+
+
 def test_the_default_ranges_draw_the_default_style_but_its_swipes_still_vary():
     rng = np.random.default_rng(4)
     style, angles = simdata.RANGES["default"].draw(rng, "u")

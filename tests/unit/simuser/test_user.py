@@ -108,7 +108,8 @@ def test_a_small_strokes_user_swipes_quicker_than_a_large_strokes_one(monkeypatc
 
 
 def test_a_user_without_length_spread_swipes_the_same_length_each_time(monkeypatch):
-    moves = recorded_moves(monkeypatch, {"length_spread": 0}, ["swipe_left"] * 10)
+    moves = recorded_moves(monkeypatch, {"length_spread": 0, "amplitude": 1.0},
+                           ["swipe_left"] * 10)
     across = user_module.STROKE_MM * user_module.SWIPE_WAY_LENGTH["across"]  # a right hand
     np.testing.assert_allclose(swipe_lengths(moves), across)
 
