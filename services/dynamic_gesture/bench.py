@@ -93,10 +93,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the benchmark's flags."""
     parser.add_argument("--users", type=int, default=16, help="held-out users [16]")
     parser.add_argument("--reps", type=int, default=2, help="strokes per gesture and user [2]")
-    parser.add_argument("--ranges", choices=sorted(simdata.RANGES), default="held-out",
+    parser.add_argument("--ranges", choices=sorted(simdata.RANGES), default=None,
                         help="style ranges of the users: held-out (outside the training "
                              "range), train (inside it), default (every user of the default "
-                             "style, as a scenario file's) [held-out]")
+                             "style, as a scenario file's) [held-out; train with --realism]")
     parser.add_argument("--seed", type=int, default=BENCH_SEED, help=f"[{BENCH_SEED}]")
     parser.add_argument("--still", type=int, default=4, help="still-hand sessions [4]")
     parser.add_argument("--jobs", type=int, default=2, help="processes simulating users [2]")
@@ -428,6 +428,8 @@ def _chosen_library(args: argparse.Namespace) -> Path | None:
 
 def run(args: argparse.Namespace) -> int:
     """Runs the three parts and prints their figures (or the real-data bench)."""
+    if args.ranges is None:  # --realism compares the range fitted to real people by default
+        args.ranges = "train" if args.realism is not None else "held-out"
     if args.plot is not None and args.realism is None:
         print("--plot draws the --realism comparison: give --realism DIR too", file=sys.stderr)
         return 2
@@ -451,7 +453,9 @@ def run(args: argparse.Namespace) -> int:
     if args.realism is not None:
         config = SegmenterConfig()
         real = realbench.real_habits(args.realism, "train", config)
-        simulated = realbench.simulated_habits(args.users, args.seed, config)
+        ranges = simdata.RANGES[args.ranges]
+        print(f"simulated: {args.users} {args.ranges} users")
+        simulated = realbench.simulated_habits(args.users, args.seed, config, ranges)
         table = realbench.print_realism(real, simulated)
         table["spread"] = realbench.print_spread(real, simulated)
         table["by_way"] = realbench.by_way(real, simulated)
@@ -459,7 +463,7 @@ def run(args: argparse.Namespace) -> int:
         ungated = realbench.ungated(config)
         table["speed_by_length"] = realbench.print_speed_by_length(
             realbench.real_habits(args.realism, "train", ungated),
-            realbench.simulated_habits(args.users, args.seed, ungated))
+            realbench.simulated_habits(args.users, args.seed, ungated, ranges))
         if args.json:
             args.json.write_text(json.dumps(table, indent=1))
         if args.plot:

@@ -1062,12 +1062,13 @@ def real_habits(root: Path, split: str, config) -> list[dict]:
     return out
 
 
-def simulated_habits(users: int, seed: int, config) -> list[dict]:
-    """Returns `habits` of simulated users' swipes (the training style range)."""
+def simulated_habits(users: int, seed: int, config,
+                     ranges: simdata.StyleRanges = simdata.TRAIN) -> list[dict]:
+    """Returns `habits` of simulated users' swipes, users drawn from `ranges`."""
     out = []
     swipes = tuple(shrec.SWIPE_DIRECTIONS)
     for user_seed in range(seed, seed + users):
-        scenario = simdata.user_scenario(user_seed, simdata.TRAIN, 3, statics=False,
+        scenario = simdata.user_scenario(user_seed, ranges, 3, statics=False,
                                          gestures=swipes)
         frames = list(SimulatedUser(scenario, 60.0).frames())
         segmenter = Segmenter(config)

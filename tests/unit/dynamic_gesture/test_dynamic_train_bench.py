@@ -7,9 +7,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from cbgo.services.dynamic_gesture import bench, simdata, train
+from cbgo.services.dynamic_gesture import bench, realbench, simdata, train
 from cbgo.services.dynamic_gesture.classifier import MIRROR
 from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, read_default, save_default
+from cbgo.services.dynamic_gesture.stroke import SegmenterConfig
 from cbgo.simuser.scenario import UserStyle
 from cbgo.wire import DYNAMIC_GESTURES
 
@@ -154,3 +155,13 @@ def test_the_default_ranges_draw_the_default_style_but_its_swipes_still_vary():
     assert style == UserStyle(side="right")
     low, high = simdata.TRAIN.angle_deg[0]
     assert low * 0.93 <= angles[0] < angles[1] <= high * 1.07 and style.length_spread > 0
+
+
+def test_the_realism_bench_draws_its_simulated_users_from_the_ranges_asked():
+    def median_peak(speed: float) -> float:
+        ranges = replace(simdata.RANGES["default"], speed=((speed, speed),))
+        rows = realbench.simulated_habits(1, 3, SegmenterConfig(), ranges)
+        return float(np.median(realbench.known_values(rows, "peak_mm_s")))
+
+    # the same person's swipes, one and a half times as quick
+    assert median_peak(1.5) > 1.3 * median_peak(1.0)
