@@ -445,6 +445,7 @@ def run(args: argparse.Namespace) -> int:
         result = realbench.play_live(trials, [], "simulated",
                                      f"{args.live_sim} simulated {args.ranges} users",
                                      library=_chosen_library(args))
+        result["ranges"] = args.ranges
         return realbench.report_live(result, args.json, synthetic=True)
     if args.replay_sim > 0:
         return run_replay_sim(args)

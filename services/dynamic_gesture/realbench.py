@@ -769,6 +769,8 @@ def trial_goals(result: dict, synthetic: bool, fields: tuple[str, ...]) -> list[
              "summary": f"episode summary's g ≥ {GOALS['summary']:.0%} balanced"}
     goal = {"dynamic": GOALS[kind], "summary": GOALS["summary"]}
     trials = sum(1 for row in result["trials"] if row["truth"] != "none")
+    # which simulated people: the held-out ones are slower and smaller than real people
+    who = f" of {result['ranges']} users" if result.get("ranges") else ""
     out = []
     for field in fields:
         block = result[field]
@@ -776,7 +778,8 @@ def trial_goals(result: dict, synthetic: bool, fields: tuple[str, ...]) -> list[
                   + metrics.format_interval(block["interval"], block["people"]))
         met = block["balanced_accuracy"] >= goal[field]
         if synthetic:
-            out.append(_sampled_goal(f"{what}: {names[field]}", met, f"{figure}, {trials} trials",
+            out.append(_sampled_goal(f"{what}: {names[field]}", met,
+                                     f"{figure}, {trials} trials{who}",
                                      trials >= GOALS["synthetic_trials"],
                                      f"{GOALS['synthetic_trials']} trials",
                                      "play more users (--replay-sim: offline, faster)"))

@@ -116,6 +116,7 @@ def test_replayed_simulated_trials_are_answered_as_the_service_answers(capsys, t
     assert "5 trials of 1 simulated train users, replayed offline" in printed
     assert "gestures/dynamic, final windows only" in printed
     assert "----  synthetic strokes, rotate included: gestures/dynamic ≥ 97% balanced" in printed
+    assert "5 trials of train users (under 250 trials" in printed  # judged on whom it says
     result = json.loads(out.read_text())
     trials = result["trials"]
     assert sorted(t["truth"] for t in trials) == sorted(DYNAMIC_GESTURES)
