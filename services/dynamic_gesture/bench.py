@@ -57,6 +57,7 @@ Examples::
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --stream-returns   # streams with returns
     cbgo bench dynamic --real ~/.cache/cbgo/leapmotion-left --per-class 0   # real left hands
     cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec --plot /tmp/fig
+    cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec --ranges default
     cbgo bench dynamic --live-sim 16           # simulated users through live services
     cbgo bench dynamic --replay-sim 100        # 500 such trials, offline, in about 3 min
     cbgo bench dynamic --plain-strokes 2       # textbook strokes on a grid: what is heard
