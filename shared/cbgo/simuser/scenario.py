@@ -54,7 +54,7 @@ class UserStyle:
     # real people's (the dynamic-gesture service's training range, 0.85-1.6 and 0.75-1.5:
     # `cbgo bench dynamic --realism DIR` compares them with the SHREC'17 train split). Until
     # stop 55 they were 1.0, that population's slow, small end: a default user's swipes
-    # peaked at 350 mm/s (median), real people's at 470.
+    # peaked at 372 mm/s (median), real people's at 474 (`--realism DIR --ranges default`).
     speed: float = 1.2          # >1 moves faster (a swipe takes about user.SWIPE_S / speed)
     amplitude: float = 1.1      # size of strokes relative to user.STROKE_MM (160 mm)
     curvature: float = 0.08     # sideways bow of strokes, fraction of their length
