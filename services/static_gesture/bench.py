@@ -68,6 +68,7 @@ import numpy as np
 
 from cbgo import keys, wire
 from cbgo.errors import RecordingError
+from cbgo.hands import features as F
 from cbgo.hands.data import load_real_features
 from cbgo.hands.features import hands_features
 from cbgo.metrics import format_confusion, format_goals
@@ -90,6 +91,8 @@ from cbgo.services.static_gesture.classifier import (
 
 EVAL_RELATIVE = Path("..") / "shared" / "eval" / "leap_static_features_test.npz"
 THUMB_PERCENTILES = (1, 5, 50, 95)
+OK_THUMB_LAST_JOINT = invariant.BEND_NAMES.index("thumb_distal_bend")
+OK_TIPS_GAP = int(F.DISTANCE_FEATURES[F.PAIRS.index((0, 1))])  # thumb tip to index tip, mm
 GOALS = {"real_balanced_accuracy": 0.997, "real_ece": 0.03, "frames_per_s": 1000.0,
          "latency_p99_ms": 5.0, "unseen_people_accuracy": 0.97, "unknown_rejection": 0.90}
 
@@ -367,6 +370,9 @@ def _print(fig: dict) -> None:
     if fig.get("thumb_levels"):
         _print_thumb_levels(fig["thumb_levels"])
         print()
+    if fig.get("ok_shapes"):
+        _print_ok_shapes(fig["ok_shapes"])
+        print()
     if fig.get("guinevere") is None:
         print(f"Guinevere's static takes: not in {guinevere.DEFAULT_DST} (python -m "
               "cbgo.services.static_gesture.guinevere convert SRC); skipped\n")
@@ -487,6 +493,33 @@ def thumb_levels(frames: mmhgr.Frames | None) -> dict:
     return out
 
 
+def ok_shapes(frames: mmhgr.Frames | None) -> dict:
+    """The shape of the paper's pinches beside the ok signs we have: medians per group.
+
+    Why: issue 15 calls an ok sign an unknown pose, and the paper's pinch is one (the README's
+    "The ok sign is `pinch`"). What tells the groups apart, if anything: the bend of the
+    thumb's last joint (`invariant.bends`) and the gap between thumb and index tips.
+    """
+    x, y, names = load_real_features()
+    gemini = ultraleap.load_poses()["ok"][0]  # the right hand; the left is its mirror image
+    groups = {"the paper's recorded pinches": x[y == names.index("pinch")],
+              "Gemini's ok sign (LMC2 tracking)": hands_features([gemini], to_recorded_side=True)}
+    if frames is not None:
+        groups["the HGR set's ok signs"] = mmhgr.features57(frames.subset(frames.pose == "ok"))
+    return {label: {"n": len(rows),
+                    "thumb_last_joint_deg": float(np.median(np.degrees(
+                        invariant.bends(rows)[:, OK_THUMB_LAST_JOINT]))),
+                    "tips_mm": float(np.median(rows[:, OK_TIPS_GAP]))}
+            for label, rows in groups.items()}
+
+
+def _print_ok_shapes(shapes: dict) -> None:
+    print("the ok sign's shape beside the paper's pinch (medians: the thumb's last joint bent; "
+          "thumb and index tips apart): " + "; ".join(
+              f"{label} (n={g['n']}) {g['thumb_last_joint_deg']:.0f}°, {g['tips_mm']:.0f} mm"
+              for label, g in shapes.items()))
+
+
 def _print_thumb_levels(levels: dict) -> None:
     print("thumb's distal bone above level, degrees (percentiles "
           f"{', '.join(map(str, THUMB_PERCENTILES))}; share pointing more than 30° down): " +
@@ -577,6 +610,7 @@ def run(args: argparse.Namespace) -> int:
     fig["throughput"] = throughput(clf, hands[:args.frames], clf.path or model_path)
     frames = None if args.no_crossval else mmhgr.load(args.mmhgr)
     fig["thumb_levels"] = thumb_levels(frames)
+    fig["ok_shapes"] = ok_shapes(frames)
     if frames is not None:
         print(f"cross-validating by person ({args.folds} folds, one training each) ...")
         fig["crossval"] = crossval.crossvalidate(frames, recipe_of(clf), args.folds,

@@ -94,7 +94,7 @@ def person_folds(people: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
 
 
 def transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray,
-                alpha: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+                alpha: float = 0.5, ok_sign: str = "pinch") -> tuple[np.ndarray, np.ndarray]:
     """Returns hands part-way between two gestures of one person: (N, 57) and their pairs.
 
     Why: a hand changing from one gesture to another passes through shapes that are neither,
@@ -109,6 +109,7 @@ def transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray,
         firsts: the frames each hand goes from (`transition_ends`).
         seconds: the frames each hand goes to.
         alpha: how far from the first frame towards the second.
+        ok_sign: what the ok signs are (`mmhgr.OK_SIGNS`), for the pairs' names.
 
     Returns:
         ``(x, pairs)``: features on the recorded side, and each hand's "first/second" gestures
@@ -116,7 +117,7 @@ def transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray,
     """
     if not len(firsts):
         return np.zeros((0, F.N_FEATURES)), np.zeros(0, dtype=str)
-    labels = frames.labels()
+    labels = frames.labels(ok_sign)
     x, step = _start_and_step(frames, firsts, seconds)
     pairs = ["/".join(sorted(pair)) for pair in zip(labels[firsts], labels[seconds], strict=True)]
     return x + alpha * step, np.array(pairs)
@@ -200,14 +201,15 @@ def _start_and_step(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarra
     return x, step
 
 
-def transition_ends(frames: mmhgr.Frames, count: int, rng: np.random.Generator
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def transition_ends(frames: mmhgr.Frames, count: int, rng: np.random.Generator,
+                    ok_sign: str = "pinch") -> tuple[np.ndarray, np.ndarray]:
     """Returns the frames transitions go from and to (`transitions`, `timed_transitions`).
 
     Each pair is one person's two frames of different gestures, the person drawn first (people
     with fewer than two gestures are skipped). Empty when no person shows two gestures.
+    ``ok_sign``: what the ok signs are (`mmhgr.OK_SIGNS`).
     """
-    labels = frames.labels()
+    labels = frames.labels(ok_sign)
     known = np.flatnonzero(labels != "")
     people = [u for u in np.unique(frames.user[known])
               if len(np.unique(labels[known][frames.user[known] == u])) > 1]
@@ -271,6 +273,7 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
     t0 = time.monotonic()
     for k, people in enumerate(groups):
         trained_on, held_out = POSE_HALVES[k % 2], POSE_HALVES[1 - k % 2]
+        ok = options.ok_sign
         test = np.isin(frames.user, people)
         fold_options = replace(options, seed=options.seed + k)
         data = train.build_datasets(fold_options, real, user=[], frames=frames.subset(~test),
@@ -282,33 +285,36 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
         network = clf.predict_features(x_test, open_set=False)
         parts.append({"frames": sub, "pred": np.array(clf.names)[probs.argmax(1)],
                       "top": probs.max(1), "probs": probs, "names": clf.names,
+                      "labels": sub.labels(ok),
                       "held_unknown": np.isin(sub.pose, held_out),
+                      "seen_unknown": np.isin(sub.pose, mmhgr.unknown_poses(ok))
+                      & ~np.isin(sub.pose, held_out),
                       "network": (np.array(clf.names)[network.argmax(1)], network.max(1)),
                       "turned": {name: np.array(clf.names)[clf.predict_features(
                           mmhgr.features57(sub, turn_rotations(len(sub), *turn))).argmax(1)]
                           for name, turn in TURNS.items()}})
         ends = transition_ends(sub, TRANSITIONS_PER_PERSON * len(people),
-                               np.random.default_rng([seed, k]))
-        x_mid, pairs = transitions(sub, *ends)
+                               np.random.default_rng([seed, k]), ok)
+        x_mid, pairs = transitions(sub, *ends, ok_sign=ok)
         mid = clf.predict_features(x_mid) if len(x_mid) else np.zeros((0, len(clf.names)))
         parts[-1]["transitions"] = (pairs, answers(clf.names, mid) == NONE)
         moved, previous = finger_motion(sub)
         parts[-1]["motion"] = (moved, _whole_change(x_test, *ends),
                                _answer_change(probs, previous))
         timed_rng = np.random.default_rng([seed, k, 1])
-        timed_ends = transition_ends(sub, TIMED_PER_PERSON * len(people), timed_rng)
+        timed_ends = transition_ends(sub, TIMED_PER_PERSON * len(people), timed_rng, ok)
         now, before, which, through = timed_transitions(sub, *timed_ends, timed_rng)
         parts[-1]["timed"] = _timed_answers(clf, now, before)
         parts[-1]["timed_through"] = through
-        parts[-1]["timed_ends"] = tuple(sub.labels()[ends][which] for ends in timed_ends)
-        parts[-1]["timed_held"] = _held_other(answers(clf.names, probs), sub.labels(),
+        parts[-1]["timed_ends"] = tuple(sub.labels(ok)[ends][which] for ends in timed_ends)
+        parts[-1]["timed_held"] = _held_other(answers(clf.names, probs), sub.labels(ok),
                                               *timed_ends)
         found_ends = transition_ends(sub, TIMED_PER_PERSON * len(people),
-                                     np.random.default_rng([seed, k, 2]))
+                                     np.random.default_rng([seed, k, 2]), ok)
         now, first, which = appearing_transitions(sub, *found_ends,
                                                   np.random.default_rng([seed, k, 3]))
         parts[-1]["appearing"] = _timed_answers(clf, now, first)[:2]
-        parts[-1]["appearing_ends"] = tuple(sub.labels()[ends][which] for ends in found_ends)
+        parts[-1]["appearing_ends"] = tuple(sub.labels(ok)[ends][which] for ends in found_ends)
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
@@ -413,7 +419,7 @@ def summarise(parts: list[dict]) -> dict:
         (`mmhgr.Frames.tracker_agrees`) apart from the others.
     """
     pose = np.concatenate([p["frames"].pose for p in parts])
-    label = np.concatenate([p["frames"].labels() for p in parts])
+    label = np.concatenate([p["labels"] for p in parts])
     user = np.concatenate([p["frames"].user for p in parts])
     conf = np.concatenate([p["frames"].confidence for p in parts])
     pred = np.concatenate([p["pred"] for p in parts])
@@ -435,7 +441,7 @@ def summarise(parts: list[dict]) -> dict:
     rejected = is_rejected(pred, top)
     rejection = {str(q): float(rejected[held & (pose == q)].mean())
                  for q in np.unique(pose[held])}
-    seen = np.isin(pose, [q for half in POSE_HALVES for q in half]) & ~held
+    seen = np.concatenate([p["seen_unknown"] for p in parts])
     rejection_seen = {str(q): float(rejected[seen & (pose == q)].mean())
                       for q in np.unique(pose[seen])}
     agrees = np.concatenate([p["frames"].tracker_agrees() for p in parts])

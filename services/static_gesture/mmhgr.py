@@ -63,6 +63,10 @@ their pinch as "grip between finger and thumb, while last three fingers are open
 (imitrob/teleop_gesture_toolbox, include/custom_settings/gestures.yaml), an ok sign's shape,
 and their recorded pinches are one (thumb and index tips 18 ± 13 mm apart, the other three
 fingers straight; the set's ok signs 29 ± 20 mm)."""
+OK_SIGNS = ("pinch", "none")
+"""What the set's ok signs can be trained as (`pose_map`): the paper's ``pinch`` (the default,
+above), or ``none``, an unknown pose, as issue 15 reads an ok sign. The README's section "The
+ok sign is `pinch`" measures both."""
 POSE_FINGERS = {"fist_moved": (0, 0, 0, 0), "up": (0, 0, 0, 0), "index": (1, 0, 0, 0),
                 "two": (1, 1, 0, 0), "three": (1, 1, 1, 0), "four": (1, 1, 1, 1),
                 "five": (1, 1, 1, 1), "ok": (0, 1, 1, 1)}
@@ -85,6 +89,25 @@ _VEC = re.compile(r"<(\w+) type_id=\"opencv-matrix\">.*?<data>\s*" + r"\s+".join
 _SCALAR = re.compile(r"<(Confidence|PinchStrength|GrabStrength|isExtended)>\s*([-+0-9.eE]+)\s*<")
 METACARPAL_MM = 50.0  # length of the stand-in metacarpals of index..pinky (only its axis counts)
 _FILE = re.compile(r"user_(\d+)/(train_pose|test_pose)/(\w+)/frame_(\d+)\.xml$")
+
+
+def pose_map(ok_sign: str = "pinch") -> dict[str, str]:
+    """Returns `POSE_MAP` with the ok signs as ``ok_sign`` says (`OK_SIGNS`).
+
+    Raises:
+        ValueError: for an ``ok_sign`` not in `OK_SIGNS`.
+    """
+    if ok_sign not in OK_SIGNS:
+        raise ValueError(f"ok_sign must be one of {', '.join(OK_SIGNS)}, got {ok_sign!r}")
+    return POSE_MAP if ok_sign == "pinch" else {p: g for p, g in POSE_MAP.items() if p != "ok"}
+
+
+def unknown_poses(ok_sign: str = "pinch") -> tuple[str, ...]:
+    """Returns the set's poses that are no cbgo gesture.
+
+    `UNKNOWN_POSES`, and the ok sign too if ``ok_sign`` is ``"none"``.
+    """
+    return UNKNOWN_POSES + (("ok",) if "ok" not in pose_map(ok_sign) else ())
 
 
 def default_cache() -> Path:
@@ -159,9 +182,13 @@ class Frames:
         """Returns the rows selected by a boolean mask or index array."""
         return Frames(**{k: getattr(self, k)[mask] for k in self.__dataclass_fields__})
 
-    def labels(self) -> np.ndarray:
-        """Returns each row's cbgo gesture name, ``""`` for unknown and ambiguous poses."""
-        return np.array([POSE_MAP.get(p, "") for p in self.pose])
+    def labels(self, ok_sign: str = "pinch") -> np.ndarray:
+        """Returns each row's cbgo gesture name, ``""`` for unknown and ambiguous poses.
+
+        ``ok_sign``: what the ok signs are (`OK_SIGNS`); ``"none"`` makes them unknown.
+        """
+        names = pose_map(ok_sign)
+        return np.array([names.get(p, "") for p in self.pose])
 
     def tracker_agrees(self) -> np.ndarray:
         """Returns per row whether the tracker's own finger flags show its pose's fingers.
@@ -318,8 +345,8 @@ if __name__ == "__main__":  # pragma: no cover - command line
     sys.exit(main())
 
 
-__all__ = ["AMBIGUOUS", "POSES", "POSE_MAP", "UNKNOWN_POSES", "Frames", "convert",
-           "default_cache", "hand_dicts", "load", "parse_frame"]
+__all__ = ["AMBIGUOUS", "OK_SIGNS", "POSES", "POSE_MAP", "UNKNOWN_POSES", "Frames", "convert",
+           "default_cache", "hand_dicts", "load", "parse_frame", "pose_map", "unknown_poses"]
 
 
 def features57(frames: Frames, rotation: np.ndarray | None = None) -> np.ndarray:

@@ -147,6 +147,7 @@ class TrainOptions:
     curl_deg: float = 0.0
     spliced_none: int = 0
     members: int = 3
+    ok_sign: str = "pinch"
 
     def __post_init__(self):
         if self.members < 1 or self.epochs < 1:
@@ -155,6 +156,7 @@ class TrainOptions:
         if self.features not in ("raw", *invariant.TRANSFORMS):
             raise ValueError(f"features must be one of raw, {', '.join(invariant.TRANSFORMS)}; "
                              f"got {self.features!r}")
+        mmhgr.pose_map(self.ok_sign)  # raises for an unknown choice
 
 
 # --------------------------------------------------------------------------- simulated data
@@ -413,12 +415,14 @@ def mmhgr_rows(frames: mmhgr.Frames, names: list[str], options: TrainOptions,
         names: the model's classes (``none`` among them for the unknown poses to count).
         options: stride, rotation and seed.
         rng: the random generator.
-        unknown: the dataset poses to train as ``none``.
+        unknown: the dataset poses to train as ``none`` (the ok signs too when
+            ``options.ok_sign`` is ``"none"``).
 
     Returns:
         ``(x, y, source)``: features (N, 57), labels into ``names``, "mmhgr" / "mmhgr_none".
     """
-    labels = frames.labels()
+    labels = frames.labels(options.ok_sign)
+    unknown = tuple(unknown) + (("ok",) if options.ok_sign == NONE else ())
     keep = np.zeros(len(frames), dtype=bool)
     keep[:: max(1, options.mmhgr_stride)] = True
     known = keep & np.isin(labels, names)
@@ -813,6 +817,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "and open hand (the finger patterns no gesture uses): horns 60 → "
                              "91 %% rejected, but C, L and thumb down less often "
                              f"(services/static_gesture/README.md) [{d.spliced_none}]")
+    parser.add_argument("--ok-sign", choices=mmhgr.OK_SIGNS, default=d.ok_sign,
+                        help="what the HGR set's ok signs are trained as: pinch (the paper's "
+                             "recorded pinches are ok signs) or none (an unknown pose). Either "
+                             "way the paper's pinches stay pinch, and Gemini's ok sign reads "
+                             "pinch: the README's section \"The ok sign is `pinch`\" "
+                             f"[{d.ok_sign}]")
     parser.add_argument("--no-user-gestures", action="store_true",
                         help="leave out the gestures recorded by demonstration")
     parser.add_argument("--validate", action="store_true",
@@ -840,6 +850,7 @@ def _options_of(args: argparse.Namespace) -> TrainOptions:
                         mmhgr=not args.no_mmhgr, mmhgr_stride=args.mmhgr_stride,
                         rotate_deg=args.rotate_deg, rotate_shape_deg=args.rotate_shape_deg,
                         curl_deg=args.curl_deg, spliced_none=args.spliced_none,
+                        ok_sign=args.ok_sign,
                         user_gestures=not (args.no_user_gestures or args.shipped))
 
 

@@ -83,3 +83,12 @@ def test_the_thumb_levels_of_the_recorded_thumbs_ups_are_summarised_without_the_
     values = list(group["percentiles"].values())
     assert values == sorted(values) and list(group["percentiles"]) == list(
         bench.THUMB_PERCENTILES)
+
+
+def test_the_ok_signs_shape_is_set_beside_the_papers_pinches_without_the_hgr_cache():
+    shapes = bench.ok_shapes(None)
+    pinches, gemini = shapes.values()
+    assert pinches["n"] > 100 and gemini["n"] == 1
+    # both hold thumb and index together, thumb tip bent: the same shape (README)
+    for g in shapes.values():
+        assert 0.0 <= g["tips_mm"] < 30.0 and 30.0 < g["thumb_last_joint_deg"] < 70.0

@@ -403,6 +403,45 @@ def test_spliced_hands_train_none_when_asked(tmp_path):
     assert more[1][-7:].tolist() == [2] * 7 and set(more[2][-7:]) == {"mmhgr_none"}
 
 
+@pytest.mark.parametrize(("ok_sign", "label"), [("pinch", "pinch"), ("none", "none")])
+def test_the_ok_signs_train_as_pinch_or_as_none_as_asked(tmp_path, ok_sign, label):
+    write_dataset(tmp_path / "src", people=(1,), poses=("five", "ok"), per_pose=3)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    names = ["pinch", "five", "none"]
+    options = train.TrainOptions(mmhgr_stride=1, ok_sign=ok_sign)
+    _, y, source = train.mmhgr_rows(frames, names, options, np.random.default_rng(0))
+    ok = frames.pose == "ok"
+    assert set(np.array(names)[y[ok]]) == {label}
+    assert set(np.array(names)[y[~ok]]) == {"five"}
+    assert set(source[ok]) == {"mmhgr" if ok_sign == "pinch" else "mmhgr_none"}
+    assert set(frames.labels(ok_sign)[ok]) == {"pinch" if ok_sign == "pinch" else ""}
+    assert ("ok" in mmhgr.unknown_poses(ok_sign)) == (ok_sign == "none")
+
+
+@pytest.mark.parametrize("ok_sign", ["pinch", "none"])
+def test_crossvalidation_scores_the_ok_signs_as_what_they_were_trained_as(tmp_path, ok_sign):
+    write_dataset(tmp_path / "src", people=(1, 2), poses=("five", "ok", "C", "L"),
+                  per_pose=2)
+    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    frames = mmhgr.load(tmp_path / "c.npz")
+    options = train.TrainOptions(per_gesture=2, none=4, off_vocabulary=4, hidden=[4],
+                                 epochs=1, mmhgr_stride=1, ok_sign=ok_sign)
+    fig = crossval.crossvalidate(frames, options, folds=2, samples=4)
+    if ok_sign == "pinch":  # a gesture of the held-out people, scored as one
+        assert fig["classes"] == ["pinch", "five"] and fig["n"] == 2 * 2 * 2
+        assert "ok" not in fig["rejection_seen"]
+    else:  # an unknown pose every fold trains as none: the other people's were seen
+        assert fig["classes"] == ["five"] and fig["n"] == 2 * 2
+        assert "ok" in fig["rejection_seen"] and "ok" not in fig["rejection"]
+    assert set(fig["rejection"]) | set(fig["rejection_seen"]) >= {"C", "L"}
+
+
+def test_an_ok_sign_that_is_neither_choice_is_refused():
+    with pytest.raises(ValueError, match="ok_sign"):
+        train.TrainOptions(ok_sign="ok")
+
+
 def test_a_timed_transition_moves_from_one_held_gesture_to_another_over_time(tmp_path):
     write_dataset(tmp_path / "src", people=(1,), poses=("fist_moved", "five"), per_pose=1)
     mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
