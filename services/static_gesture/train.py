@@ -819,10 +819,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"(services/static_gesture/README.md) [{d.spliced_none}]")
     parser.add_argument("--ok-sign", choices=mmhgr.OK_SIGNS, default=d.ok_sign,
                         help="what the HGR set's ok signs are trained as: pinch (the paper's "
-                             "recorded pinches are ok signs) or none (an unknown pose). Either "
-                             "way the paper's pinches stay pinch, and Gemini's ok sign reads "
-                             "pinch: the README's section \"The ok sign is `pinch`\" "
-                             f"[{d.ok_sign}]")
+                             "recorded pinches are ok signs) or none (an unknown pose). The "
+                             "paper's pinches stay pinch either way, and the Leap Motion "
+                             "Controller 2's ok sign (Ultraleap's Gemini pose) still reads "
+                             "pinch as held, 0.59 with none (README: \"The ok sign trained as "
+                             f"`none` instead\") [{d.ok_sign}]")
     parser.add_argument("--no-user-gestures", action="store_true",
                         help="leave out the gestures recorded by demonstration")
     parser.add_argument("--validate", action="store_true",
