@@ -12,6 +12,11 @@ Behaviour (the contract is services/static_gesture/README.md):
   side and id, and when its fingers moved more than ``--still-deg`` in the last 0.15 s (since
   its first frame, while it is younger) and its answer changed by ``--changed-tv`` its
   gestures fade into ``none``, wholly from ``--moving-deg`` (`motion`; 0 turns it off);
+- ``--ignore`` names gestures the deployment does not use: their probability moves into
+  ``none`` in every message (``names`` keep them, at 0), so that a pose meaning nothing here,
+  an ok sign read as the paper's ``pinch`` for one, is no evidence of a gesture nobody made.
+  A name the model lacks is a configuration error at start, and a reloaded model that lacks
+  one is refused, the old model staying in service;
 - the model: ``--model PATH``, else the user's model (``data_dir()/models/static-gesture``, what
   ``cbgo train static`` and ``cbgo gestures record`` write) if it exists, else the one shipped
   in the package. A model that does not load at start is a configuration error (exit 2);
@@ -67,6 +72,9 @@ class StaticGestureSettings:
         "only a hand whose answer changed this much in the last 0.15 s (total variation, "
         "0-1) is faded for its finger motion: a held pose's flicker keeps its answer "
         "(0: finger motion alone)"))
+    ignore: list[str] = field(default_factory=list, metadata=_help(
+        "gestures this deployment does not use, answered as none: their probability moves "
+        "into none (comma-separated; e.g. pinch, where an ok sign means nothing)"))
 
     def __post_init__(self):
         if not 1 <= self.samples <= 1024:
@@ -79,6 +87,8 @@ class StaticGestureSettings:
         if not 0 <= self.changed_tv <= 1:
             raise ConfigError(f"changed_tv={self.changed_tv} must be within 0-1 (0: finger "
                               "motion alone)")
+        if NONE in self.ignore:
+            raise ConfigError(f"ignore {self.ignore}: {NONE} is what ignored gestures become")
 
 
 class StaticGesture(Service):
@@ -106,14 +116,31 @@ class StaticGesture(Service):
         self.store = ModelStore(shipped_model_path(), user_model_path(), MODEL_SUFFIXES,
                                 self.settings.model)
         path, stamps = self.store.snapshot()
-        self._install(StaticClassifier.load(path, self.settings.samples), path, stamps)
-        ctx.log.info("model %s loaded from %s: %s", self.classifier.model_id, path,
-                     ", ".join(self.classifier.names))
+        self._install(self._load(path), path, stamps)
+        ctx.log.info("model %s loaded from %s: %s%s", self.classifier.model_id, path,
+                     ", ".join(self.classifier.names),
+                     f"; ignored: {', '.join(self.settings.ignore)}" if self.settings.ignore
+                     else "")
         ctx.subscribe(keys.HANDS_FRAME, self.on_hands_frame)
         ctx.publishes(keys.GESTURES_STATIC)
         ctx.control("reload", self.on_reload)
         if self.settings.watch_s > 0:
             ctx.every(self.settings.watch_s, self.on_watch)
+
+    def _load(self, path: Path) -> StaticClassifier:
+        """Loads a model and checks that it knows every ignored gesture.
+
+        Raises:
+            ConfigError: the model does not load, or lacks an ignored gesture or ``none``.
+        """
+        classifier = StaticClassifier.load(path, self.settings.samples)
+        unknown = [g for g in self.settings.ignore if g not in classifier.names]
+        if self.settings.ignore and (unknown or NONE not in classifier.names):
+            raise ConfigError(f"ignore {', '.join(self.settings.ignore)}: model "
+                              f"{classifier.model_id} ({path}) has no "
+                              f"{', '.join(unknown) or NONE} among its classes "
+                              f"{', '.join(classifier.names)}")
+        return classifier
 
     def _install(self, classifier: StaticClassifier, path: Path, stamps: tuple) -> None:
         # The stamps were taken BEFORE loading (`ModelStore.snapshot`): files replaced meanwhile
@@ -137,6 +164,7 @@ class StaticGesture(Service):
         if ok.any():
             probs[ok] = self._fade_moving([h for h, good in zip(hands, ok, strict=True) if good],
                                           msg["ts"], bent[ok], probs[ok])
+            probs[ok] = self._ignored_into_none(probs[ok])
         self.hands += len(hands)
         clf = self.classifier
         return [(keys.GESTURES_STATIC, keys.GESTURES_STATIC.message(ts=msg["ts"], seq=msg["seq"],
@@ -155,6 +183,16 @@ class StaticGesture(Service):
         self.moving += int((keep < 1.0).sum())
         return fade_into_none(probs, keep, self.classifier.names.index(NONE))
 
+    def _ignored_into_none(self, probs: np.ndarray) -> np.ndarray:
+        """Returns the probabilities with the ignored gestures' moved into ``none``."""
+        if not self.settings.ignore:
+            return probs
+        names = self.classifier.names
+        ignored = [names.index(g) for g in self.settings.ignore]
+        probs[:, names.index(NONE)] += probs[:, ignored].sum(1)
+        probs[:, ignored] = 0.0
+        return probs
+
     def on_reload(self, query: dict) -> dict:
         """Called for each ``reload`` query: loads the model again (or ``{model: PATH}``).
 
@@ -164,7 +202,7 @@ class StaticGesture(Service):
         path, stamps = self.store.reload_target(query)
         previous = self.classifier.model_id
         try:
-            classifier = StaticClassifier.load(path, self.settings.samples)
+            classifier = self._load(path)
         except ConfigError as e:
             self.ctx.counters.error("reload", str(e))
             raise QueryError(f"reload failed, still serving {previous}: {e}") from None
@@ -182,7 +220,7 @@ class StaticGesture(Service):
         path, stamps = self.store.snapshot()
         previous = self.classifier.model_id
         try:
-            classifier = StaticClassifier.load(path, self.settings.samples)
+            classifier = self._load(path)
         except ConfigError as e:
             self.store.served(path, stamps)  # report a broken file once
             self.ctx.counters.error("watch", str(e))
@@ -194,9 +232,10 @@ class StaticGesture(Service):
                           classifier.model_id, path)
 
     def status_extra(self) -> dict:
-        """Adds the model in service, the hands classified and those faded for moving."""
+        """Adds the model, the hands classified and faded for moving, the ignored gestures."""
         return {"model": self.classifier.describe() if self.classifier else None,
-                "hands_classified": self.hands, "hands_moving": self.moving}
+                "hands_classified": self.hands, "hands_moving": self.moving,
+                "ignored": list(self.settings.ignore)}
 
 
 main = main_for(StaticGesture)

@@ -108,6 +108,42 @@ def test_the_relaxed_hand_between_gestures_is_no_gesture():
     assert winner(out[0][1]) == "none"
 
 
+def test_an_ignored_gesture_is_answered_as_none_and_the_others_are_untouched():
+    hands = [gesture_hand("pinch"), gesture_hand("five", hand_id=2)]
+    plain = [m for _, m in service().feed(keys.HANDS_FRAME, frame(hands))]
+    bus = service(ignore=["pinch"])
+    ignored = [m for _, m in bus.feed(keys.HANDS_FRAME, frame(hands))]
+    names = ignored[0]["names"]
+    pinch, none = names.index("pinch"), names.index("none")
+    assert names == plain[0]["names"] and winner(plain[0]) == "pinch"
+    for before, after in zip(plain, ignored, strict=True):
+        wire.validate(after, wire.GESTURES_STATIC)
+        assert after["probs"][pinch] == 0.0 and abs(sum(after["probs"]) - 1.0) < 1e-9
+        assert after["probs"][none] == pytest.approx(before["probs"][none] + before["probs"][pinch])
+        others = [k for k in range(len(names)) if k not in (pinch, none)]
+        assert np.allclose(np.array(after["probs"])[others], np.array(before["probs"])[others])
+    assert winner(ignored[0]) == "none" and winner(ignored[1]) == "five"
+    assert bus.service.status_extra()["ignored"] == ["pinch"]
+
+
+@pytest.mark.parametrize(("ignore", "reason"), [(["pinh"], "has no pinh among its classes"),
+                                                (["none"], "none is what ignored")])
+def test_an_ignored_name_the_model_cannot_answer_is_a_configuration_error(ignore, reason):
+    with pytest.raises(ConfigError, match=reason):
+        service(ignore=ignore)
+
+
+def test_a_reloaded_model_without_an_ignored_gesture_is_refused_and_the_old_one_serves(
+        make_model, tmp_path):
+    pt, _, first = make_model("m", seed=1)
+    without, _, _ = make_model("no-pinch", names=[g for g in STATIC_GESTURES if g != "pinch"]
+                               + ["none"])
+    bus = service(model=str(pt), watch_s=0.0, ignore=["pinch"])
+    ok, reason = bus.query("reload", {"model": str(without)})
+    assert not ok and f"still serving {first}" in reason and "has no pinch" in reason
+    assert bus.feed(keys.HANDS_FRAME, frame([gesture_hand("five")]))[0][1]["model"] == first
+
+
 # --------------------------------------------------------------------------- the model
 
 
