@@ -271,21 +271,22 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
     groups = person_folds(np.unique(frames.user), folds, seed)
     parts = []
     t0 = time.monotonic()
+    ok = options.ok_sign  # what the ok signs are: a gesture or an unknown pose
     for k, people in enumerate(groups):
         trained_on, held_out = POSE_HALVES[k % 2], POSE_HALVES[1 - k % 2]
-        ok = options.ok_sign
         test = np.isin(frames.user, people)
         fold_options = replace(options, seed=options.seed + k)
         data = train.build_datasets(fold_options, real, user=[], frames=frames.subset(~test),
                                     unknown=trained_on)
         clf = train.classifier_of(train.fit(data, fold_options), samples)
         sub = frames.subset(test)
+        labels = sub.labels(ok)
         x_test = mmhgr.features57(sub)
         probs = clf.predict_features(x_test)
         network = clf.predict_features(x_test, open_set=False)
         parts.append({"frames": sub, "pred": np.array(clf.names)[probs.argmax(1)],
                       "top": probs.max(1), "probs": probs, "names": clf.names,
-                      "labels": sub.labels(ok),
+                      "labels": labels,
                       "held_unknown": np.isin(sub.pose, held_out),
                       "seen_unknown": np.isin(sub.pose, mmhgr.unknown_poses(ok))
                       & ~np.isin(sub.pose, held_out),
@@ -306,15 +307,15 @@ def crossvalidate(frames: mmhgr.Frames, options: train.TrainOptions, folds: int 
         now, before, which, through = timed_transitions(sub, *timed_ends, timed_rng)
         parts[-1]["timed"] = _timed_answers(clf, now, before)
         parts[-1]["timed_through"] = through
-        parts[-1]["timed_ends"] = tuple(sub.labels(ok)[ends][which] for ends in timed_ends)
-        parts[-1]["timed_held"] = _held_other(answers(clf.names, probs), sub.labels(ok),
+        parts[-1]["timed_ends"] = tuple(labels[ends][which] for ends in timed_ends)
+        parts[-1]["timed_held"] = _held_other(answers(clf.names, probs), labels,
                                               *timed_ends)
         found_ends = transition_ends(sub, TIMED_PER_PERSON * len(people),
                                      np.random.default_rng([seed, k, 2]), ok)
         now, first, which = appearing_transitions(sub, *found_ends,
                                                   np.random.default_rng([seed, k, 3]))
         parts[-1]["appearing"] = _timed_answers(clf, now, first)[:2]
-        parts[-1]["appearing_ends"] = tuple(sub.labels(ok)[ends][which] for ends in found_ends)
+        parts[-1]["appearing_ends"] = tuple(labels[ends][which] for ends in found_ends)
         if log:
             log(f"  fold {k + 1}/{len(groups)}: people {', '.join(map(str, people))}; "
                 f"none trained on {'/'.join(trained_on)}, held out {'/'.join(held_out)}; "
