@@ -92,7 +92,7 @@ from cbgo.services.static_gesture.classifier import (
 EVAL_RELATIVE = Path("..") / "shared" / "eval" / "leap_static_features_test.npz"
 THUMB_PERCENTILES = (1, 5, 50, 95)
 OK_THUMB_LAST_JOINT = invariant.BEND_NAMES.index("thumb_distal_bend")
-OK_TIPS_GAP = int(F.DISTANCE_FEATURES[F.PAIRS.index((0, 1))])  # thumb tip to index tip, mm
+OK_TIPS_GAP = F.FEATURE_NAMES.index("dist_thumb_index")  # mm
 GOALS = {"real_balanced_accuracy": 0.997, "real_ece": 0.03, "frames_per_s": 1000.0,
          "latency_p99_ms": 5.0, "unseen_people_accuracy": 0.97, "unknown_rejection": 0.90}
 

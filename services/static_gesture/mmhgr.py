@@ -102,12 +102,13 @@ def pose_map(ok_sign: str = "pinch") -> dict[str, str]:
     return POSE_MAP if ok_sign == "pinch" else {p: g for p, g in POSE_MAP.items() if p != "ok"}
 
 
-def unknown_poses(ok_sign: str = "pinch") -> tuple[str, ...]:
+def unknown_poses(ok_sign: str = "pinch", base: tuple[str, ...] = UNKNOWN_POSES
+                  ) -> tuple[str, ...]:
     """Returns the set's poses that are no cbgo gesture.
 
-    `UNKNOWN_POSES`, and the ok sign too if ``ok_sign`` is ``"none"``.
+    ``base`` (by default `UNKNOWN_POSES`), and the ok sign too if ``ok_sign`` is ``"none"``.
     """
-    return UNKNOWN_POSES + (("ok",) if "ok" not in pose_map(ok_sign) else ())
+    return tuple(base) + (("ok",) if "ok" not in pose_map(ok_sign) else ())
 
 
 def default_cache() -> Path:

@@ -422,7 +422,7 @@ def mmhgr_rows(frames: mmhgr.Frames, names: list[str], options: TrainOptions,
         ``(x, y, source)``: features (N, 57), labels into ``names``, "mmhgr" / "mmhgr_none".
     """
     labels = frames.labels(options.ok_sign)
-    unknown = tuple(unknown) + (("ok",) if options.ok_sign == NONE else ())
+    unknown = mmhgr.unknown_poses(options.ok_sign, unknown)
     keep = np.zeros(len(frames), dtype=bool)
     keep[:: max(1, options.mmhgr_stride)] = True
     known = keep & np.isin(labels, names)
