@@ -12,7 +12,7 @@ STAMP := $(VENV)/.cbgo-installed
 
 .PHONY: demo test test-fast test-compose lint install clean
 
-$(STAMP): pyproject.toml setup.py
+$(STAMP): pyproject.toml setup.py tools/pyproject.toml
 	python3 -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet $(TORCH)
@@ -21,6 +21,8 @@ $(STAMP): pyproject.toml setup.py
 	$(PY) -m pip install --quiet numpy cython setuptools wheel
 	$(PY) -m pip install --quiet --no-build-isolation --no-cache-dir fastdtw
 	$(PY) -m pip install --quiet -e '.[test]'
+# the offline tools (benchmarks, trainers, converters): a package of their own, outside the wheel
+	$(PY) -m pip install --quiet --no-deps -e tools/
 # mujoco 4.0.0 pins mujoco-core 4.0.0, whose constraint solver has a bug that 4.0.1 fixes.
 	$(PY) -m pip install --quiet --no-deps 'mujoco-core==4.0.1'
 	touch $(STAMP)
@@ -31,12 +33,12 @@ demo: $(STAMP)
 	$(VENV)/bin/cbgo demo $(DEMO_ARGS)
 
 test: $(STAMP)
-	$(VENV)/bin/ruff check shared services tests docs
+	$(VENV)/bin/ruff check shared services tools tests docs
 	$(PY) -m pytest -q
 
 # The fast tiers (tests/conftest.py marks each test by its folder): a developer's loop.
 test-fast: $(STAMP)
-	$(VENV)/bin/ruff check shared services tests docs
+	$(VENV)/bin/ruff check shared services tools tests docs
 	$(PY) -m pytest -q -m "unit or deploy"
 
 # The compose files on a real Docker engine (deploy/ci/compose-test.sh): starts the engine
@@ -45,7 +47,7 @@ test-compose: $(STAMP)
 	PY=$(PY) bash deploy/ci/compose-test.sh
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check shared services tests docs
+	$(VENV)/bin/ruff check shared services tools tests docs
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

@@ -5,7 +5,6 @@ from cbgo.manifest import Manifest
 
 MANIFEST = Manifest(
     name="dry-robot",
-    issue=10,
     summary="the robot on the symbolic world model, no physics (no MuJoCo needed; "
     "fast plan checks)",
     order=71,

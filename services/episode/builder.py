@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cbgo import keys, wire
+from cbgo.evidence import Evidence, EvidenceSettings, Trigger, gesture_vector
 from cbgo.services.episode import focus as focus_mod
-from cbgo.services.episode.evidence import Evidence, EvidenceSettings, Trigger, gesture_vector
 from cbgo.services.episode.params import (
     HandSample,
     aperture,

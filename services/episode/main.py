@@ -33,10 +33,10 @@ import numpy as np
 from cbgo import keys, wire
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError
+from cbgo.evidence import EvidenceSettings, Trigger
 from cbgo.examples import example
 from cbgo.runtime import Service, main_for
 from cbgo.services.episode.builder import BuilderSettings, EpisodeBuilder
-from cbgo.services.episode.evidence import EvidenceSettings, Trigger
 from cbgo.services.episode.segmenter import Boundary, Segmenter
 from cbgo.transform import default_to_base, parse_to_base
 

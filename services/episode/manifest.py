@@ -5,7 +5,6 @@ from cbgo.manifest import Manifest, Tool
 
 MANIFEST = Manifest(
     name="episode",
-    issue=6,
     summary="gesture episodes, evidence, the gesture vector g, focus, params",
     order=40,
     subscribes=(
@@ -17,13 +16,6 @@ MANIFEST = Manifest(
     ),
     publishes=(keys.EPISODE_EVENT, keys.EPISODE_SUMMARY),
     service="cbgo.services.episode.main:Episode",
-    benches=(
-        Tool(
-            "episode",
-            "cbgo.services.episode.bench",
-            "episode end condition -> summary latency through real processes",
-        ),
-    ),
     figures=(
         Tool(
             "episode",

@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from cbgo.errors import RecordingError
+from cbgo.evidence import Evidence, EvidenceSettings
 from cbgo.recording import read_recording
-from cbgo.services.episode.evidence import Evidence, EvidenceSettings
 from cbgo.services.episode.segmenter import Segmenter
 
 SUFFIXES = ("hands/frame", "gestures/static", "gestures/dynamic", "episode/event",

@@ -5,7 +5,6 @@ from cbgo.manifest import Manifest
 
 MANIFEST = Manifest(
     name="foxglove-bridge",
-    issue=20,
     summary="the live traffic, 3D scene and log as a Foxglove WebSocket server",
     order=90,
     optional=True,

@@ -35,7 +35,7 @@ asks for the goal with the gesture they use for that goal, not for the repairs. 
 ``repairable`` (the default) the paper's datasets are unchanged: a seed gives the same
 observations as before the option existed.
 
-File format (``cbgo dataset make``): a NumPy ``.npz`` (no pickles; load with
+File format (``cbgo data intent make``): a NumPy ``.npz`` (no pickles; load with
 ``allow_pickle=False``), N observations, objects padded to K = 7 slots in scene order:
 
 ========================  =========  =======================================================

@@ -1,11 +1,10 @@
 """intent's manifest: what `shared/` knows of it (`cbgo.manifest`)."""
 
 from cbgo import keys
-from cbgo.manifest import Manifest, Tool
+from cbgo.manifest import Manifest
 
 MANIFEST = Manifest(
     name="intent",
-    issue=7,
     summary="intent (action, object, params) from g and context",
     order=50,
     subscribes=(keys.EPISODE_SUMMARY, keys.SCENE_STATE, keys.USER, keys.INTENT_FEEDBACK),
@@ -13,12 +12,4 @@ MANIFEST = Manifest(
     answers=(keys.INTENT_INFER,),
     controls=("last", "reload"),
     service="cbgo.services.intent.main:Intent",
-    trainer=Tool(
-        "intent", "cbgo.services.intent.train", "intent model (order-invariant Bayesian) on D4"
-    ),
-    benches=(
-        Tool(
-            "intent", "cbgo.services.intent.bench", "paper's M1-M5 vs ours on D1-D5, learning curve"
-        ),
-    ),
 )

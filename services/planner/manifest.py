@@ -5,7 +5,6 @@ from cbgo.manifest import Manifest
 
 MANIFEST = Manifest(
     name="planner",
-    issue=9,
     summary="behaviour trees that turn an intent into robot actions",
     order=60,
     subscribes=(keys.INTENT, keys.SCENE_STATE, keys.ROBOT_STOP),

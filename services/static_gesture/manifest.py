@@ -5,21 +5,12 @@ from cbgo.manifest import Manifest, Tool
 
 MANIFEST = Manifest(
     name="static-gesture",
-    issue=4,
     summary="per-frame static gesture probabilities (Bayesian MLP)",
     order=20,
     subscribes=(keys.HANDS_FRAME,),
     publishes=(keys.GESTURES_STATIC,),
     controls=("reload",),
     service="cbgo.services.static_gesture.main:StaticGesture",
-    trainer=Tool("static", "cbgo.services.static_gesture.train", "static-gesture Bayesian MLP"),
-    benches=(
-        Tool(
-            "static",
-            "cbgo.services.static_gesture.bench",
-            "static gestures: accuracy, ECE, latency",
-        ),
-    ),
     demonstrate=Tool(
         "static", "cbgo.services.static_gesture.demonstrate", "a hand pose (static-gesture)"
     ),

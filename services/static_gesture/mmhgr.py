@@ -1,10 +1,11 @@
-"""The "Multi-modal Leap Motion dataset for HGR": converter, loader and vocabulary mapping.
+"""The "Multi-modal Leap Motion dataset for HGR": loader and vocabulary mapping.
 
 The dataset (Mantecón et al.; 25 people, 16 static poses, Leap Motion SDK v2 frames as OpenCV
 XML, about 1.25 GB) is copied in the GitHub repository ``sluyters/QuantumLeap``, folder
 ``backend/src/datasets/static/multi_mod_hand_gest_recog/``. It comes with no licence file, so
-cbgo ships none of it: this module converts a local copy into one compact cache file OUTSIDE
-the repository, and the bench and the trainer use that file when it is present.
+cbgo ships none of it: ``cbgo data convert mmhgr SRC`` (`cbgo_tools.data.mmhgr`) converts a local
+copy into one compact cache file OUTSIDE the repository, and the trainer and the bench use that
+file when it is present.
 
 Rules:
 
@@ -33,25 +34,19 @@ Rules:
 
 Examples::
 
-    python -m cbgo.services.static_gesture.mmhgr convert SRC          # → default cache
-    python -m cbgo.services.static_gesture.mmhgr convert SRC --out F  # elsewhere
-    python -m cbgo.services.static_gesture.mmhgr info                 # what the cache holds
-
-SRC is the ``multi_mod_hand_gest_recog`` folder, e.g. from
-``git archive HEAD backend/src/datasets/static/multi_mod_hand_gest_recog | tar -x``.
+    cbgo data fetch mmhgr             # a copy of the source folder, into the cache
+    cbgo data convert mmhgr           # → the cache file the trainer reads
+    cbgo data convert mmhgr --info    # what the cache file holds
 """
 
 from __future__ import annotations
 
-import argparse
-import re
-import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from cbgo.config import cache_dir
 from cbgo.wire import BONE_TYPES, FINGER_TYPES
 
 POSES = ("C", "L", "down", "fist_moved", "five", "four", "hang", "heavy", "index", "ok",
@@ -81,14 +76,7 @@ ORIENTED_POSES = ("up", "down")
 (``up``) or palm down (``down``); every other pose is told by its shape."""
 UNKNOWN_POSES = tuple(p for p in POSES if p not in POSE_MAP and p not in AMBIGUOUS)
 SESSIONS = ("train_pose", "test_pose")
-_FINGER_TAGS = ("Thumb", "Index", "Middle", "Ring", "Pinky")
-_POINT_TAGS = ("mcpPosition", "pipPosition", "dipPosition", "TipPosition")
-_NUM = r"([-+0-9.eE]+)"
-_VEC = re.compile(r"<(\w+) type_id=\"opencv-matrix\">.*?<data>\s*" + r"\s+".join([_NUM] * 3)
-                  + r"\s*</data>", re.S)
-_SCALAR = re.compile(r"<(Confidence|PinchStrength|GrabStrength|isExtended)>\s*([-+0-9.eE]+)\s*<")
 METACARPAL_MM = 50.0  # length of the stand-in metacarpals of index..pinky (only its axis counts)
-_FILE = re.compile(r"user_(\d+)/(train_pose|test_pose)/(\w+)/frame_(\d+)\.xml$")
 
 
 def pose_map(ok_sign: str = "pinch") -> dict[str, str]:
@@ -112,52 +100,11 @@ def unknown_poses(ok_sign: str = "pinch", base: tuple[str, ...] = UNKNOWN_POSES
 
 
 def default_cache() -> Path:
-    """Returns the cache file: ``$XDG_CACHE_HOME/cbgo/mmhgr.npz`` (``~/.cache`` by default).
+    """Returns the converted cache file, ``mmhgr.npz`` in `cbgo.config.cache_dir`.
 
     It sits outside the repository and the data directory on purpose (unlicensed data).
     """
-    import os  # noqa: PLC0415 - only here, for XDG_CACHE_HOME
-
-    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(root) / "cbgo" / "mmhgr.npz"
-
-
-def parse_frame(text: str) -> dict | None:
-    """Parses one frame file; returns its first hand, or None when the frame has no hand.
-
-    Returns:
-        ``{side, palm, normal, direction, joints (5, 4, 3), extended (5,), confidence, grab,
-        pinch}``.
-    """
-    start = text.find("<Hands>")
-    end = text.find("</Hands>", start)
-    if start < 0 or end < 0:
-        return None
-    block = text[start:end]
-    side = re.search(r"<(Right|Left)>", block)
-    if side is None:
-        return None
-    vectors: dict[str, list] = {}
-    finger = None
-    for m in re.finditer(r"<(Thumb|Index|Middle|Ring|Pinky)>|" + _VEC.pattern, block, re.S):
-        if m.group(1):
-            finger = m.group(1)
-            continue
-        tag = m.group(2)
-        vectors[f"{finger}.{tag}" if finger and tag in _POINT_TAGS else tag] = [
-            float(m.group(i)) for i in (3, 4, 5)]
-    scalars: dict[str, list] = {}
-    for m in _SCALAR.finditer(block):
-        scalars.setdefault(m.group(1), []).append(float(m.group(2)))
-    try:
-        joints = [[vectors[f"{f}.{p}"] for p in _POINT_TAGS] for f in _FINGER_TAGS]
-        return {"side": side.group(1).lower(), "palm": vectors["Center"],
-                "normal": vectors["Normal"], "direction": vectors["Direction"],
-                "joints": joints, "extended": scalars["isExtended"][:5],
-                "confidence": scalars["Confidence"][0], "grab": scalars["GrabStrength"][0],
-                "pinch": scalars["PinchStrength"][0]}
-    except (KeyError, IndexError):
-        return None
+    return cache_dir() / "mmhgr.npz"
 
 
 @dataclass
@@ -219,44 +166,6 @@ class Frames:
         return agrees
 
 
-def convert(src: Path, out: Path, progress: bool = True) -> int:
-    """Converts every frame file under ``src`` into the cache file ``out`` (atomically).
-
-    Returns:
-        The number of frames written (files without a hand are skipped).
-
-    Raises:
-        FileNotFoundError: ``src`` holds no ``user_NN/<session>/<pose>/frame_*.xml`` file.
-    """
-    files = sorted(p for p in Path(src).rglob("frame_*.xml") if _FILE.search(p.as_posix()))
-    if not files:
-        raise FileNotFoundError(f"no user_NN/<session>/<pose>/frame_*.xml under {src}")
-    rows, meta = [], []
-    t0 = time.monotonic()
-    for n, path in enumerate(files):
-        hand = parse_frame(path.read_text(errors="replace"))
-        if hand is not None:
-            rows.append(hand)
-            meta.append(_FILE.search(path.as_posix()).groups())
-        if progress and n % 5000 == 0:
-            print(f"  {n}/{len(files)} files, {time.monotonic() - t0:.0f} s", file=sys.stderr)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f"tmp-{out.name}")
-    np.savez_compressed(
-        tmp, joints=np.array([r["joints"] for r in rows], dtype=np.float32),
-        palm=np.array([r["palm"] for r in rows], dtype=np.float32),
-        normal=np.array([r["normal"] for r in rows], dtype=np.float32),
-        direction=np.array([r["direction"] for r in rows], dtype=np.float32),
-        side=np.array([r["side"] for r in rows]),
-        confidence=np.array([r["confidence"] for r in rows], dtype=np.float32),
-        extended=np.array([r["extended"] for r in rows], dtype=bool),
-        user=np.array([int(m[0]) for m in meta], dtype=np.int16),
-        session=np.array([SESSIONS.index(m[1]) for m in meta], dtype=np.int8),
-        pose=np.array([m[2] for m in meta]), frame=np.array([int(m[3]) for m in meta]))
-    tmp.replace(out)
-    return len(rows)
-
-
 def load(path: Path | None = None) -> Frames | None:
     """Loads the cache file; None when it does not exist (the data are optional)."""
     path = default_cache() if path is None else Path(path)
@@ -297,57 +206,6 @@ def hand_dicts(frames: Frames, joints: np.ndarray | None = None,
             "palm_width": 80.0, "grab_strength": 0.0, "pinch_strength": 0.0,
             "fingers": fingers})
     return hands
-
-
-def _info(frames: Frames) -> None:
-    print(f"{len(frames)} frames, {len(np.unique(frames.user))} people, sides "
-          f"{dict(zip(*np.unique(frames.side, return_counts=True), strict=True))}")
-    for pose in POSES:
-        sel = frames.pose == pose
-        ext = frames.extended[sel].mean(0)
-        role = POSE_MAP.get(pose, "(ambiguous)" if pose in AMBIGUOUS else "(unknown)")
-        print(f"  {pose:10s} → {role:12s} {int(sel.sum()):5d} frames; extended T I M R P "
-              + " ".join(f"{e:.2f}" for e in ext)
-              + f"; confidence {np.median(frames.confidence[sel]):.2f}")
-    print("median tracking confidence per person: " + ", ".join(
-        f"{u}: {np.median(frames.confidence[frames.user == u]):.2f}"
-        for u in np.unique(frames.user)))
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Command line: ``convert SRC [--out FILE]`` or ``info [--file FILE]``."""
-    parser = argparse.ArgumentParser(prog="python -m cbgo.services.static_gesture.mmhgr",
-                                     description=__doc__.split("\n\n")[0])
-    sub = parser.add_subparsers(dest="verb", required=True)
-    conv = sub.add_parser("convert", help="XML folder → cache file")
-    conv.add_argument("src", type=Path)
-    conv.add_argument("--out", type=Path, default=None, help=f"[{default_cache()}]")
-    info = sub.add_parser("info", help="what the cache file holds")
-    info.add_argument("--file", type=Path, default=None)
-    args = parser.parse_args(argv)
-    if args.verb == "convert":
-        out = args.out or default_cache()
-        try:
-            n = convert(args.src, out)
-        except (OSError, ValueError) as exc:  # no copy there, or an unreadable frame
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-        print(f"wrote {n} frames to {out}")
-        return 0
-    frames = load(args.file)
-    if frames is None:
-        print(f"no cache file at {args.file or default_cache()}; run `convert` first")
-        return 1
-    _info(frames)
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover - command line
-    sys.exit(main())
-
-
-__all__ = ["AMBIGUOUS", "OK_SIGNS", "POSES", "POSE_MAP", "UNKNOWN_POSES", "Frames", "convert",
-           "default_cache", "hand_dicts", "load", "parse_frame", "pose_map", "unknown_poses"]
 
 
 def features57(frames: Frames, rotation: np.ndarray | None = None) -> np.ndarray:

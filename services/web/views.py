@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cbgo.errors import ConfigError
-from cbgo.services.episode.evidence import Evidence, EvidenceSettings
+from cbgo.evidence import Evidence, EvidenceSettings
 from cbgo.transform import default_to_base, parse_to_base
 
 # Streams that arrive with every hand frame (or near it): downsampled, newest wins.

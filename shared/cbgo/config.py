@@ -429,6 +429,20 @@ def data_dir(env: typing.Mapping[str, str] | None = None) -> Path:
     return Path(base) / "cbgo"
 
 
+def cache_dir(env: typing.Mapping[str, str] | None = None) -> Path:
+    """Returns where fetched and converted third-party data sets live; not created here.
+
+    ``CBGO_CACHE_DIR``, else ``$XDG_CACHE_HOME/cbgo``, else ``~/.cache/cbgo``. The data sets
+    have licences of their own (or none), so they stay outside the repository and the data
+    directory: ``cbgo data list`` shows what is where.
+    """
+    env = os.environ if env is None else env
+    if env.get("CBGO_CACHE_DIR"):
+        return Path(env["CBGO_CACHE_DIR"]).expanduser()
+    base = env.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "cbgo"
+
+
 def _file_wins(options: ZenohOptions, conf, key: str, endpoints: list[str]) -> bool:
     """Whether a config file's own endpoints at `key` stand over cbgo's built-in default.
 

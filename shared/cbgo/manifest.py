@@ -2,12 +2,13 @@
 
 Each service folder has a ``manifest.py`` with one ``MANIFEST = Manifest(...)``: its name and
 summary, its place in the pipeline, what it replaces, the keys it reads, writes and answers,
-its service class (and so its settings), and its tools (a trainer, benchmarks, figures, gestures by
-demonstration). `cbgo.registry` discovers the manifests (no table of services in `shared/`),
-and from them come `cbgo up --list`, `cbgo bench`, `cbgo train`, `cbgo plot`,
-`cbgo gestures`, and the key and config tables of each service's README
-(`cbgo.readme_tables`). A test holds each manifest's keys against what the service's
-``setup()`` declares.
+its service class (and so its settings), and the user-facing tools it brings (figures drawn from
+recordings, gestures by demonstration). `cbgo.registry` discovers the manifests (no table of
+services in `shared/`), and from them come `cbgo up --list`, `cbgo plot`, `cbgo gestures`, and
+the key and config tables of each service's README (`cbgo.readme_tables`). Benchmarks,
+trainers and data-set converters are offline tools: they live in `tools/` (the ``cbgo_tools``
+package, outside the wheel), which declares them in ``cbgo_tools.registry``. A test holds
+each manifest's keys against what the service's ``setup()`` declares.
 
 A manifest module imports only this module and `cbgo.keys`: reading every manifest is cheap
 (no torch, no MuJoCo), and a tool's module is imported only when it runs.
@@ -24,7 +25,7 @@ from cbgo.keys import Topic
 
 @dataclass(frozen=True)
 class Tool:
-    """A command a service brings: ``cbgo train|bench|plot <name>``, or demonstration.
+    """A command a service brings: ``cbgo plot <name>``, or demonstration.
 
     Attributes:
         name: the name on the command line (``static`` in ``cbgo train static``).
@@ -44,7 +45,6 @@ class Manifest:
 
     Attributes:
         name: kebab-case service name (folder, console script, liveliness token, compose).
-        issue: the issue that built it.
         summary: what it does, in one line.
         order: its place in the pipeline: `cbgo up` starts services in this order.
         replaces: the default service whose keys it answers instead (an alternative
@@ -58,14 +58,11 @@ class Manifest:
             at run time).
         controls: its ``@ctl`` verbs besides ``status``.
         service: ``module:Class`` of its `cbgo.runtime.Service` (and so of its settings).
-        trainer: ``cbgo train <name>``.
-        benches: ``cbgo bench <name>``.
         figures: ``cbgo plot <name>``.
         demonstrate: ``cbgo gestures record --<name>``: learning a gesture by demonstration.
     """
 
     name: str
-    issue: int
     summary: str
     order: int
     replaces: str | None = None
@@ -76,8 +73,6 @@ class Manifest:
     asks: tuple[Topic, ...] = ()
     controls: tuple[str, ...] = ()
     service: str = ""
-    trainer: Tool | None = None
-    benches: tuple[Tool, ...] = ()
     figures: tuple[Tool, ...] = ()
     demonstrate: Tool | None = None
 

@@ -5,7 +5,8 @@ A service named ``static-gesture`` lives in ``services/static_gesture/`` (import
 ``python -m cbgo.services.static_gesture``, declares ``cbgo/@alive/static-gesture`` and is the
 compose service ``static-gesture``. Each service declares itself in its folder's
 ``manifest.py`` (`cbgo.manifest`); `discover` finds them, so `shared/` holds no table of
-services, trainers, benchmarks or figures: `tools` collects them from the manifests.
+services or figures: `tools` collects them from the manifests (benchmarks and trainers are
+`cbgo_tools.registry`'s).
 
 The seven pipeline services and web (the live page) are the default set. An *alternative*
 (``replaces`` set) is another implementation of a default service's keys, e.g. dry-robot for
@@ -59,7 +60,7 @@ def tools(kind: str) -> dict[str, tuple[str, str]]:
     """Returns the services' tools of one kind: name -> (module, summary).
 
     Args:
-        kind: ``trainer``, ``benches``, ``figures`` or ``demonstrate`` (a `Manifest` field).
+        kind: ``figures`` or ``demonstrate`` (a `Manifest` field).
 
     Raises:
         ValueError: two services bring a tool of the same name.

@@ -322,7 +322,7 @@ def test_each_service_runs_the_console_script_of_its_package(services, project_s
                                                              installed_scripts, info):
     assert services[info.name]["command"] == [info.script]
     if not info.exists():
-        pytest.skip(f"{info.name} is not implemented yet (issue {info.issue})")
+        pytest.skip(f"{info.name} is not implemented in this checkout")
     target = f"{info.package}.main:main"
     assert project_scripts.get(info.script) == target, (
         f"[project.scripts] needs {info.script} = \"{target}\"")

@@ -9,8 +9,8 @@ import json
 
 import pytest
 
-from cbgo.bench.latency import QUICK_EPISODES
-from cbgo.bench.latency_figures import MEASURES
+from cbgo_tools.bench.latency import QUICK_EPISODES
+from cbgo_tools.bench.latency_figures import MEASURES
 
 
 @pytest.fixture(scope="module")

@@ -37,7 +37,7 @@ def test_infer_answers_valid_queries_and_gives_error_replies_to_bad_ones(stack, 
 
 
 def test_by_default_the_service_accepts_put_into_a_closed_drawer(stack, tmp_path):
-    from cbgo.services.intent.evaluate import demo_scene
+    from cbgo_tools.intent.evaluate import demo_scene
 
     start_intent(stack, tmp_path)
     scene = demo_scene()  # the robot holds full cup1; drawer1 is closed

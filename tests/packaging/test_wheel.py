@@ -8,8 +8,10 @@ outside the source tree:
 
 - `cbgo up` brings the router and every service alive (models, MJCF meshes, gesture tables
   and scenarios are read from the installed package);
-- `cbgo train intent` writes into the data directory and leaves the installed package as it
-  was.
+- the wheel carries no offline tool (benchmark, trainer pipeline, cross-validation,
+  converter), and `cbgo bench` there says how to install them;
+- with the tools installed from the sdist's ``tools/``, `cbgo train intent` writes into the
+  data directory and leaves the installed package as it was.
 
 Building the venv takes a few minutes (most of it installing torch and MuJoCo), once per run.
 """
@@ -89,13 +91,13 @@ def dist(tmp_path_factory):
     run([builder / "bin" / "python", "-m", "build", "--outdir", out, source], work)
     (sdist,) = out.glob("cbgo-*.tar.gz")
     (wheel,) = out.glob("cbgo-*.whl")
-    return sdist, wheel
+    return sdist, wheel, source
 
 
 @pytest.fixture(scope="module")
 def venv(dist, tmp_path_factory):
     """A fresh venv with the wheel installed non-editable (torch first, as the README says)."""
-    _, wheel = dist
+    _, wheel, _ = dist
     home = tmp_path_factory.mktemp("user")
     env = tmp_path_factory.mktemp("venv") / "venv"
     run([sys.executable, "-m", "venv", env], home)
@@ -107,7 +109,7 @@ def venv(dist, tmp_path_factory):
 
 
 def test_the_sdist_and_the_wheel_carry_every_tracked_file_of_the_package(dist):
-    sdist, wheel = dist
+    sdist, wheel, _ = dist
     files = git_files(*ROOTS)
     assert any("/models/" in f for f in files)  # the data folders the issue was about
     with zipfile.ZipFile(wheel) as z:
@@ -119,6 +121,29 @@ def test_the_sdist_and_the_wheel_carry_every_tracked_file_of_the_package(dist):
     assert [f for f in files if installed_name(f) not in in_wheel] == []
     assert [f for f in files if f not in in_sdist] == []
     assert not [n for n in in_wheel if "__pycache__" in n or n.endswith(".pyc")]
+
+
+OFFLINE_NAMES = ("bench", "crossval", "realbench", "shrec", "leapjs", "guinevere", "ultraleap",
+                 "plainstrokes", "simdata", "evaluate", "takes")
+
+
+def test_the_wheel_carries_no_offline_tool(dist):
+    _, wheel, _ = dist
+    with zipfile.ZipFile(wheel) as z:
+        modules = [n for n in z.namelist() if n.endswith(".py")]
+    assert not [n for n in modules if n.startswith("cbgo_tools/")]
+    offline = [n for n in modules
+               if any(part.removesuffix(".py") in OFFLINE_NAMES for part in n.split("/"))]
+    assert offline == []
+
+
+def test_the_installed_wheel_says_where_the_offline_tools_are(venv, tmp_path):
+    env_dir, home = venv
+    env = user_env(env_dir, tmp_path / "data")
+    done = subprocess.run([env_dir / "bin" / "cbgo", "bench", "wire"], cwd=home, env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done
+    assert "pip install -e tools/" in done.stderr and "Traceback" not in done.stderr
 
 
 def test_the_installed_wheel_brings_every_service_alive_outside_the_tree(venv, tmp_path):
@@ -164,8 +189,10 @@ def test_the_installed_wheel_brings_every_service_alive_outside_the_tree(venv, t
                 up.wait(10)
 
 
-def test_the_installed_trainer_writes_to_the_data_dir_not_into_the_package(venv, tmp_path):
+def test_the_installed_trainer_writes_to_the_data_dir_not_into_the_package(dist, venv, tmp_path):
+    _, _, source = dist
     env_dir, home = venv
+    run([env_dir / "bin" / "pip", "install", "--quiet", "--no-deps", source / "tools"], home)
     data = tmp_path / "data"
     env = user_env(env_dir, data)
     package = Path(run([env_dir / "bin" / "python", "-c",

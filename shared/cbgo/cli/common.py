@@ -20,13 +20,28 @@ from cbgo.client import ConnectError, add_network_arguments, connect
 from cbgo.errors import ConfigError
 from cbgo.keys import Keys
 
-__all__ = ["add_network_arguments", "fail", "read_json_argument", "run_module", "session"]
+__all__ = ["add_network_arguments", "fail", "offline_registry", "read_json_argument", "run_module",
+           "session"]
+
+OFFLINE_TOOLS = ("the offline tools (benchmarks, trainers, data-set converters) are not installed: "
+                 "they live in a cbgo checkout's tools/ folder, outside the cbgo wheel; from the "
+                 "checkout, `pip install -e tools/` (`make install` does)")
 
 
 def fail(message: str, code: int = 1) -> None:
     """Prints an error for the user and exits."""
     print(f"cbgo: {message}", file=sys.stderr)
     sys.exit(code)
+
+
+def offline_registry() -> Any:
+    """Returns `cbgo_tools.registry`, or ends the command saying how to install the tools."""
+    try:
+        return importlib.import_module("cbgo_tools.registry")
+    except ModuleNotFoundError as e:
+        if e.name not in ("cbgo_tools", "cbgo_tools.registry"):
+            raise
+        fail(OFFLINE_TOOLS, 2)
 
 
 def run_module(module_name: str, prog: str, argv: list[str]) -> int:

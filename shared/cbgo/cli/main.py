@@ -38,7 +38,7 @@ VERBS = {
     "replay": ("replay", "replay an MCAP recording onto the network"),
     "export": ("export", "convert a recording to JSON MCAP with schemas, for Foxglove"),
     "foxglove": ("foxglove", "serve the live traffic to Foxglove (WebSocket, 3D scene, log)"),
-    "dataset": ("dataset", "generate the paper's intent datasets D1-D5"),
+    "data": ("data", "real data sets (list, fetch, convert) and the paper's intent sets D1-D5"),
     "feedback": ("feedback", "correct the last intent (personalises the user's model)"),
     "gestures": ("gestures", "record a new gesture by demonstration and retrain"),
     "sim": ("sim", "talk to the simulator: snapshot, reset"),

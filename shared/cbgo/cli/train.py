@@ -1,4 +1,4 @@
-"""Train a model and write it where its service loads it.
+"""Train a model and write it where its service loads it (the offline tools of a checkout).
 
 Examples::
 
@@ -10,17 +10,18 @@ from __future__ import annotations
 
 import argparse
 
-from cbgo.cli.common import run_module
-from cbgo.train import TRAINERS
+from cbgo.cli.common import offline_registry, run_module
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the trainer name; its own options are parsed by the trainer (lazy import)."""
-    parser.add_argument("trainer", choices=sorted(TRAINERS), metavar="TRAINER",
-                        help="; ".join(f"{name}: {text}" for name, (_, text) in TRAINERS.items()))
+    trainers = offline_registry().TRAINERS
+    parser.add_argument("trainer", choices=sorted(trainers), metavar="TRAINER",
+                        help="; ".join(f"{name}: {text}" for name, (_, text) in trainers.items()))
     parser.add_argument("args", nargs=argparse.REMAINDER, help="the trainer's own options")
 
 
 def run(args: argparse.Namespace) -> int:
     """Imports the chosen trainer, parses its options and runs it."""
-    return run_module(TRAINERS[args.trainer][0], f"cbgo train {args.trainer}", args.args)
+    module = offline_registry().TRAINERS[args.trainer][0]
+    return run_module(module, f"cbgo train {args.trainer}", args.args)

@@ -92,14 +92,22 @@ def list_services() -> int:
     return 0
 
 
+def offline_tools(service: str) -> list[str]:
+    """Returns a service's benchmarks and trainers, where this checkout has the offline tools."""
+    try:
+        from cbgo_tools.registry import tools_of
+    except ModuleNotFoundError:  # an installed wheel: the tools live in a checkout's tools/
+        return []
+    return tools_of(service)
+
+
 def _print_interface(info: registry.Manifest) -> None:
     """Prints a manifest's keys and tools, indented under its line."""
     for label, topics in (("reads", info.subscribes), ("writes", info.publishes),
                           ("answers", info.answers), ("asks", info.asks)):
         if topics:
             print(f"{'':17}{label + ':':<9}{', '.join(t.suffix for t in topics)}")
-    tools = [f"cbgo train {info.trainer.name}"] if info.trainer else []
-    tools += [f"cbgo bench {b.name}" for b in info.benches]
+    tools = offline_tools(info.name)
     tools += [f"cbgo plot {f.name}" for f in info.figures]
     if info.demonstrate:
         tools.append(f"cbgo gestures record --{info.demonstrate.name}")

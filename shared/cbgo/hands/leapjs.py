@@ -16,8 +16,8 @@ of the conversion, written down:
   intermediate → ``dipPosition``, distal → ``btipPosition``, each ``width`` wide (the thumb's
   metacarpal has zero length, as the SDK reports it).
 
-Used by dynamic-gesture's real-data benches (`cbgo.services.dynamic_gesture.leapjs`) and
-static-gesture's (`cbgo.services.static_gesture.guinevere`).
+Used by dynamic-gesture's real-data benches (`cbgo_tools.data.leapjs`) and
+static-gesture's (`cbgo_tools.data.guinevere`).
 """
 
 from __future__ import annotations

@@ -3,8 +3,8 @@
 import argparse
 import json
 
-from cbgo.bench import BENCHES
-from cbgo.bench import hands as bench
+from cbgo_tools.bench import hands as bench
+from cbgo_tools.registry import BENCHES
 
 
 def test_the_hands_bench_is_registered_and_writes_its_figures_as_json(tmp_path, capsys):

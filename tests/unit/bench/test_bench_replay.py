@@ -5,8 +5,8 @@ import argparse
 import numpy as np
 import pytest
 
-from cbgo.bench import replay
 from cbgo.recording import read_recording
+from cbgo_tools.bench import replay
 
 
 def test_the_recording_holds_every_message_at_its_random_gap(tmp_path):

@@ -1,7 +1,7 @@
 """`cbgo bench wire` produces its figures (values are printed, not asserted as speed goals)."""
 
-from cbgo.bench.wire import codec_table, router_latency
 from cbgo.examples import EXAMPLE_KEYS
+from cbgo_tools.bench.wire import codec_table, router_latency
 
 
 def test_the_codec_table_has_a_row_per_example_with_measured_costs():
@@ -17,7 +17,7 @@ def test_router_latency_receives_every_frame_sent_through_a_real_router():
 
 
 def test_the_bridge_benchmark_measures_a_real_leap_bridge_stream():
-    from cbgo.bench.bridge import measure
+    from cbgo_tools.bench.bridge import measure
 
     s = measure(60.0, 1.5, "demo")
     assert s["frames"] > 60 and s["invalid"] == 0

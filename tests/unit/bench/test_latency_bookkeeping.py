@@ -2,8 +2,8 @@
 
 import pytest
 
-from cbgo.bench.latency import GESTURE_FOR
-from cbgo.bench.latency_figures import (
+from cbgo_tools.bench.latency import GESTURE_FOR
+from cbgo_tools.bench.latency_figures import (
     Frame,
     Observed,
     Run,
@@ -151,7 +151,7 @@ def test_the_driver_resets_the_world_after_an_episode_that_went_astray(action, p
                                                                        monkeypatch):
     import argparse
 
-    from cbgo.bench.latency import SCENE, Driver
+    from cbgo_tools.bench.latency import SCENE, Driver
 
     monkeypatch.setattr("time.sleep", lambda s: None)
     seen = observed(action=action)

@@ -1,14 +1,16 @@
 """The LeapJS converter (the Guinevere set) on recordings laid out like LeapJS's own frames."""
 
 import json
+from argparse import Namespace
 
 import numpy as np
 import pytest
 
 from cbgo import keys, wire
 from cbgo.hands import leapjs as hands_leapjs
-from cbgo.services.dynamic_gesture import leapjs, realbench
 from cbgo.services.dynamic_gesture.stroke import Segmenter
+from cbgo_tools.data import leapjs
+from cbgo_tools.dynamic_gesture import realbench
 
 
 def leapjs_hand(palm, hand_id=7, side="right"):
@@ -227,13 +229,13 @@ def test_the_swipes_of_leapmotion_all_become_a_set(tmp_path):
     for name, take in takes.items():
         (src / name).parent.mkdir(parents=True, exist_ok=True)
         (src / f"{name}.json").write_text(json.dumps(take))
-    assert leapjs.main(["swipes", str(src), str(tmp_path / "both")]) == 0
+    assert leapjs.run(Namespace(src=src, dst=tmp_path / "both", left_only=False)) == 0
     both = leapjs.read_set(tmp_path / "both")
     assert {(r.person, r.gesture, r.take) for r in both} == {
         ("participant-2", "swipe_right", 6), ("participant-2", "swipe_left", 3)}
     for frame in both[0].frames():  # whole: both hands, as the sensor reported them
         assert sorted(h["side"] for h in frame["hands"]) == ["left", "right"]
-    assert leapjs.main(["left-hands", str(src), str(tmp_path / "left")]) == 0
+    assert leapjs.run(Namespace(src=src, dst=tmp_path / "left", left_only=True)) == 0
     left = leapjs.read_set(tmp_path / "left")
     assert [(r.person, r.gesture, r.take) for r in left] == [("participant-2", "swipe_right", 6)]
     for frame in left[0].frames():
@@ -242,7 +244,7 @@ def test_the_swipes_of_leapmotion_all_become_a_set(tmp_path):
 
 
 def test_a_folder_without_leapmotion_all_recordings_is_named(tmp_path, capsys):
-    assert leapjs.main(["swipes", str(tmp_path), str(tmp_path / "both")]) == 2
+    assert leapjs.run(Namespace(src=tmp_path, dst=tmp_path / "both", left_only=False)) == 2
     assert "participant-" in capsys.readouterr().err
 
 

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from cbgo.services.dynamic_gesture import bench, plainstrokes, realbench
 from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library
 from cbgo.services.dynamic_gesture.stroke import SegmenterConfig
+from cbgo_tools.dynamic_gesture import bench, plainstrokes, realbench
 
 
 def test_a_plain_stroke_goes_its_way_from_where_it_starts_and_comes_back():

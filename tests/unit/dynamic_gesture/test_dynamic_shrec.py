@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 
 from cbgo import keys, wire
-from cbgo.services.dynamic_gesture import realbench, shrec, simdata, train
 from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig
 from cbgo.wire import DYNAMIC_GESTURES
+from cbgo_tools.data import shrec
+from cbgo_tools.dynamic_gesture import realbench, simdata, train
 
 
 def upright_hand(palm_m=(0.427, -0.307, 0.488)) -> np.ndarray:

@@ -7,12 +7,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from cbgo.services.dynamic_gesture import bench, realbench, simdata, train
 from cbgo.services.dynamic_gesture.classifier import MIRROR
 from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, read_default, save_default
 from cbgo.services.dynamic_gesture.stroke import SegmenterConfig
 from cbgo.simuser.scenario import UserStyle
 from cbgo.wire import DYNAMIC_GESTURES
+from cbgo_tools.dynamic_gesture import bench, realbench, simdata, train
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from cbgo.services.dynamic_gesture import simdata, train
 from cbgo.services.dynamic_gesture.classifier import NONE, blend, mirrored, net_rows
 from cbgo.services.dynamic_gesture.library import (
     Library,
@@ -15,6 +14,7 @@ from cbgo.services.dynamic_gesture.library import (
     save_user_template,
 )
 from cbgo.wire import DYNAMIC_GESTURES
+from cbgo_tools.dynamic_gesture import simdata, train
 
 NAMES = [*DYNAMIC_GESTURES, NONE]
 

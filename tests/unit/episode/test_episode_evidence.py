@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from cbgo.services.episode.evidence import Evidence, EvidenceSettings, gesture_vector
+from cbgo.evidence import Evidence, EvidenceSettings, gesture_vector
 
 NAMES = ["grab", "point", "none"]
 

@@ -5,8 +5,8 @@ import pytest
 
 from cbgo import keys, wire
 from cbgo.errors import ConfigError
+from cbgo.evidence import EvidenceSettings
 from cbgo.examples import open_hand
-from cbgo.services.episode.evidence import EvidenceSettings
 from cbgo.services.episode.main import EpisodeSettings
 from cbgo.simuser.scenario import parse_scenario
 from cbgo.simuser.user import SimulatedUser

@@ -7,7 +7,6 @@ import json
 import numpy as np
 import pytest
 
-from cbgo.bench.hands import KEPT, simulate, train_knn, train_mlp
 from cbgo.hands.calibrate import calibrate
 from cbgo.hands.data import load_real_features, real_features_sha256
 from cbgo.hands.model import PARAM_NAMES
@@ -19,6 +18,7 @@ from cbgo.hands.poses import (
     load_poses,
     parameter_correlation,
 )
+from cbgo_tools.bench.hands import KEPT, simulate, train_knn, train_mlp
 
 
 def test_poses_json_covers_every_gesture_and_says_how_it_was_made():

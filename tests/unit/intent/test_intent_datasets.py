@@ -98,10 +98,10 @@ def test_cbgo_dataset_make_writes_a_file_that_info_describes(tmp_path, capsys):
 
     path = tmp_path / "d2.npz"
     with pytest.raises(SystemExit) as made:
-        main(["dataset", "make", "D2", "-n", "25", "--seed", "4", "-o", str(path)])
+        main(["data", "intent", "make", "D2", "-n", "25", "--seed", "4", "-o", str(path)])
     assert made.value.code == 0 and len(datasets.Dataset.load(path)) == 25
     with pytest.raises(SystemExit) as shown:
-        main(["dataset", "info", str(path)])
+        main(["data", "intent", "info", str(path)])
     out = capsys.readouterr().out
     assert shown.value.code == 0 and "D2 (25 observations, seed 4" in out and "g float32" in out
 
@@ -110,8 +110,8 @@ def test_cbgo_dataset_make_writes_a_file_that_info_describes(tmp_path, capsys):
 
 
 def test_the_repair_rule_opens_closed_drawers_and_sets_held_objects_aside():
-    from cbgo.services.intent.evaluate import demo_scene
     from cbgo.world.repairs import after_repairs
+    from cbgo_tools.intent.evaluate import demo_scene
 
     holding = demo_scene()  # full cup1 in the gripper, drawer1 closed
     opened = after_repairs("put_into", "drawer1", holding)
@@ -129,9 +129,9 @@ def test_the_repair_rule_opens_closed_drawers_and_sets_held_objects_aside():
 
 
 def test_a_full_closed_drawer_is_not_repairable():
-    from cbgo.services.intent.evaluate import demo_scene
     from cbgo.world import SceneObject
     from cbgo.world.repairs import after_repairs
+    from cbgo_tools.intent.evaluate import demo_scene
 
     scene = demo_scene()
     scene.objects.append(SceneObject("box2", "box", (0, 0, 0), 0.05, inside="drawer1"))
@@ -185,12 +185,12 @@ def test_cbgo_dataset_make_repairable_records_it(tmp_path, capsys):
 
     path = tmp_path / "d4r.npz"
     with pytest.raises(SystemExit) as made:
-        main(["dataset", "make", "D4", "-n", "300", "--seed", "3", "--repairable", "-o",
+        main(["data", "intent", "make", "D4", "-n", "300", "--seed", "3", "--repairable", "-o",
               str(path)])
     ds = datasets.Dataset.load(path)
     assert made.value.code == 0 and ds.meta["repairable"] is True
     with pytest.raises(SystemExit):
-        main(["dataset", "info", str(path)])
+        main(["data", "intent", "info", str(path)])
     out = capsys.readouterr().out
     assert "repairable intents: True" in out
     assert f"intents needing the planner's repairs: {int(ds.repaired.sum())}" in out

@@ -1,6 +1,6 @@
-"""`python -m cbgo.services.intent.evaluate --timing`: the cost of one inference."""
+"""`python -m cbgo_tools.intent.evaluate --timing`: the cost of one inference."""
 
-from cbgo.services.intent import evaluate
+from cbgo_tools.intent import evaluate
 
 
 def test_timing_prints_the_median_of_a_prediction_and_of_a_whole_inference(capsys):

@@ -6,11 +6,12 @@ import argparse
 import numpy as np
 import pytest
 
-from cbgo.services.intent import datasets, train
+from cbgo.services.intent import datasets
 from cbgo.services.intent.decide import DecisionConfig
 from cbgo.services.intent.engine import IntentEngine
-from cbgo.services.intent.evaluate import demo_scene, two_cups_scene
 from cbgo.services.intent.personal import PersonalStore, trained_with_repairs
+from cbgo_tools.intent import train
+from cbgo_tools.intent.evaluate import demo_scene, two_cups_scene
 
 HALFWAY = [0.44, 0.0, 0.03]  # between the two cups of two_cups_scene
 

@@ -163,7 +163,7 @@ def test_a_correction_that_cannot_apply_is_refused_and_counted(bus):
 
 def put_into_closed_drawer(user="user1", gesture="five"):
     """The demo: the robot holds full cup1, the person looks at the closed drawer1."""
-    from cbgo.services.intent.evaluate import demo_scene
+    from cbgo_tools.intent.evaluate import demo_scene
 
     scene = demo_scene()
     return query(gestures={"names": [gesture], "probs": [0.9]}, scene=scene.to_dict(),

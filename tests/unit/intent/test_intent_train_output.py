@@ -4,9 +4,9 @@ import argparse
 from pathlib import Path
 
 from cbgo.services.intent import main as intent_main
-from cbgo.services.intent import train
 from cbgo.services.intent.main import Intent, IntentSettings
 from cbgo.testing import FakeBus
+from cbgo_tools.intent import train
 
 PACKAGE = Path(intent_main.__file__).parent
 

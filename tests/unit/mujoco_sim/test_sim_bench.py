@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from cbgo import world
-from cbgo.services.mujoco_sim import bench, scenes
+from cbgo.services.mujoco_sim import scenes
 from cbgo.services.mujoco_sim.skills import Robot, missing_preconditions
 from cbgo.wire import ACTIONS
+from cbgo_tools.mujoco_sim import bench
 
 
 def test_the_independent_generator_stays_inside_the_workspace_and_covers_it():

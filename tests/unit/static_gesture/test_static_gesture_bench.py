@@ -5,7 +5,7 @@ import json
 import numpy as np
 
 from cbgo.hands.data import load_real_features
-from cbgo.services.static_gesture import bench
+from cbgo_tools.static_gesture import bench
 
 
 def test_the_bench_reports_accuracy_calibration_throughput_and_latency(tmp_path, capsys):

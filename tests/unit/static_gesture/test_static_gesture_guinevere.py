@@ -2,6 +2,7 @@
 from simulated hands, converted, then scored by the shipped model as `cbgo bench static
 --takes` scores them."""
 
+import argparse
 import json
 
 import numpy as np
@@ -11,9 +12,10 @@ from cbgo.hands.leapjs import JOINTS
 from cbgo.hands.model import HandShape, build_hand
 from cbgo.hands.poses import gesture_pose
 from cbgo.recording import read_recording
-from cbgo.services.static_gesture import guinevere, takes
 from cbgo.services.static_gesture.classifier import StaticClassifier, default_model_path
 from cbgo.wire import decode
+from cbgo_tools.data import guinevere
+from cbgo_tools.static_gesture import takes
 
 
 def leapjs_frame(hand, timestamp_us, hand_id=131):
@@ -88,7 +90,7 @@ def test_the_tracker_view_of_a_take_is_its_median_strengths_and_usual_finger_fla
 
 
 def test_a_folder_without_takes_is_a_clear_error(tmp_path, capsys):
-    assert guinevere.main(["convert", str(tmp_path)]) == 2
+    assert guinevere.run(argparse.Namespace(src=tmp_path, dst=tmp_path / "takes")) == 2
     assert "no LeapJS takes" in capsys.readouterr().err
 
 

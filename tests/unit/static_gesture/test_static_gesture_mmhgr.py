@@ -1,13 +1,17 @@
 """The multi-modal Leap HGR converter and the person-grouped cross-validation, on hands written
 in the data set's layout (the data set itself is never needed by the tests)."""
 
+import argparse
+
 import numpy as np
 import pytest
 
 from cbgo.hands import features as F
 from cbgo.hands.model import HandShape, build_hand
 from cbgo.hands.poses import gesture_pose
-from cbgo.services.static_gesture import bench, crossval, invariant, mmhgr, motion, train
+from cbgo.services.static_gesture import invariant, mmhgr, motion, train
+from cbgo_tools.data import mmhgr as mmhgr_data
+from cbgo_tools.static_gesture import bench, crossval
 
 _POINTS = ("mcpPosition", "pipPosition", "dipPosition", "TipPosition")
 
@@ -65,7 +69,7 @@ def write_dataset(root, people=(1, 2), poses=("fist_moved", "five", "up", "ok"),
 def test_a_converted_frame_reads_the_same_as_the_contract_hand_it_came_from(tmp_path):
     hands = write_dataset(tmp_path / "src")
     out = tmp_path / "cache.npz"
-    assert mmhgr.convert(tmp_path / "src", out, progress=False) == len(hands)
+    assert mmhgr_data.convert(tmp_path / "src", out, progress=False) == len(hands)
     frames = mmhgr.load(out)
     assert sorted(set(frames.user)) == [1, 2] and set(frames.side) == {"right"}
     originals = [hands[(int(u), str(p), int(f))] for u, p, f in
@@ -82,16 +86,18 @@ def test_a_converted_frame_reads_the_same_as_the_contract_hand_it_came_from(tmp_
 
 
 def test_a_frame_without_a_hand_is_skipped():
-    assert mmhgr.parse_frame("<opencv_storage><Frame><ID>3</ID></Frame></opencv_storage>") is None
+    frame = "<opencv_storage><Frame><ID>3</ID></Frame></opencv_storage>"
+    assert mmhgr_data.parse_frame(frame) is None
 
 
 def test_a_folder_without_frames_is_named(tmp_path):
     with pytest.raises(FileNotFoundError, match="frame_"):
-        mmhgr.convert(tmp_path, tmp_path / "c.npz")
+        mmhgr_data.convert(tmp_path, tmp_path / "c.npz")
 
 
 def test_the_command_line_names_a_folder_without_frames(tmp_path, capsys):
-    assert mmhgr.main(["convert", str(tmp_path), "--out", str(tmp_path / "c.npz")]) == 2
+    args = argparse.Namespace(src=tmp_path, out=tmp_path / "c.npz", info=False)
+    assert mmhgr_data.run(args) == 2
     assert "frame_" in capsys.readouterr().err and not (tmp_path / "c.npz").exists()
 
 
@@ -184,7 +190,7 @@ def test_a_converted_frame_reads_its_palm_axis_from_the_hand_direction(tmp_path)
     # The HGR set has no metacarpals: the stand-ins along the hand direction give the palm
     # axis of the original hand to within the fan of its real metacarpals.
     hands = write_dataset(tmp_path / "src", people=(1,), poses=("five", "up"), per_pose=2)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     originals = [hands[(int(u), str(p), int(f))] for u, p, f in
                  zip(frames.user, frames.pose, frames.frame, strict=True)]
@@ -197,7 +203,7 @@ def test_a_converted_frame_reads_its_palm_axis_from_the_hand_direction(tmp_path)
 def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp_path):
     write_dataset(tmp_path / "src", people=(1, 2, 3, 4),
                   poses=("fist_moved", "five", "up", "C", "L", "palm_m"), per_pose=2)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     options = train.TrainOptions(per_gesture=2, none=4, off_vocabulary=4, hidden=[4],
                                  epochs=1, mmhgr_stride=1)
@@ -263,7 +269,7 @@ def test_crossvalidation_scores_each_person_with_a_model_that_never_saw_them(tmp
 
 def test_finger_motion_is_the_bends_change_since_the_takes_previous_kept_frame(tmp_path):
     write_dataset(tmp_path / "src", people=(1,), poses=("five", "up"), per_pose=3)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     moved, previous = crossval.finger_motion(frames)
     first = frames.frame == 0
@@ -284,7 +290,7 @@ def test_finger_motion_is_the_bends_change_since_the_takes_previous_kept_frame(t
 def test_a_transition_lies_between_two_gestures_of_one_person(tmp_path):
     write_dataset(tmp_path / "src", people=(1, 2), poses=("fist_moved", "five", "up", "C"),
                   per_pose=2)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     x = mmhgr.features57(frames)
     labels = frames.labels()
@@ -327,7 +333,7 @@ def test_a_frame_agrees_with_its_pose_when_the_trackers_finger_flags_show_it(
     folder = tmp_path / "src" / "user_01" / "train_pose" / pose
     folder.mkdir(parents=True)
     (folder / "frame_1.xml").write_text(frame_xml(_hand("five", "right", 1), extended=flags))
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     assert mmhgr.load(tmp_path / "c.npz").tracker_agrees().tolist() == [agrees]
 
 
@@ -344,13 +350,13 @@ def test_a_frame_agrees_with_its_poses_thumb_when_the_pose_fixes_it(tmp_path, po
     folder.mkdir(parents=True)
     flags = (thumb, 1, 1, 1, 1)
     (folder / "frame_1.xml").write_text(frame_xml(_hand("five", "right", 1), extended=flags))
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     assert mmhgr.load(tmp_path / "c.npz").thumb_agrees().tolist() == [agrees]
 
 
 def test_wider_turns_spare_the_thumb_poses_told_apart_by_orientation(tmp_path):
     write_dataset(tmp_path / "src", people=(1,), poses=("fist_moved", "five", "up"), per_pose=2)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     names = ["grab", "five", "thumbsup", "none"]
     still, _, _ = train.mmhgr_rows(frames, names, train.TrainOptions(
@@ -365,7 +371,7 @@ def test_wider_turns_spare_the_thumb_poses_told_apart_by_orientation(tmp_path):
 
 def test_a_spliced_hand_is_one_persons_fist_with_fingers_of_their_open_hand(tmp_path):
     write_dataset(tmp_path / "src", people=(1, 2), poses=("fist_moved", "five"), per_pose=3)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     horns = np.array([[0, 1, 0, 0, 1]], dtype=bool)
     spliced = mmhgr.splice_fingers(frames, horns, 40, np.random.default_rng(0))
@@ -392,7 +398,7 @@ def test_a_spliced_hand_is_one_persons_fist_with_fingers_of_their_open_hand(tmp_
 
 def test_spliced_hands_train_none_when_asked(tmp_path):
     write_dataset(tmp_path / "src", people=(1,), poses=("fist_moved", "five"), per_pose=3)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     names = ["grab", "five", "none"]
     rng = np.random.default_rng(0)
@@ -406,7 +412,7 @@ def test_spliced_hands_train_none_when_asked(tmp_path):
 @pytest.mark.parametrize(("ok_sign", "label"), [("pinch", "pinch"), ("none", "none")])
 def test_the_ok_signs_train_as_pinch_or_as_none_as_asked(tmp_path, ok_sign, label):
     write_dataset(tmp_path / "src", people=(1,), poses=("five", "ok"), per_pose=3)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     names = ["pinch", "five", "none"]
     options = train.TrainOptions(mmhgr_stride=1, ok_sign=ok_sign)
@@ -423,7 +429,7 @@ def test_the_ok_signs_train_as_pinch_or_as_none_as_asked(tmp_path, ok_sign, labe
 def test_crossvalidation_scores_the_ok_signs_as_what_they_were_trained_as(tmp_path, ok_sign):
     write_dataset(tmp_path / "src", people=(1, 2), poses=("five", "ok", "C", "L"),
                   per_pose=2)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     options = train.TrainOptions(per_gesture=2, none=4, off_vocabulary=4, hidden=[4],
                                  epochs=1, mmhgr_stride=1, ok_sign=ok_sign)
@@ -444,7 +450,7 @@ def test_an_ok_sign_that_is_neither_choice_is_refused():
 
 def test_a_timed_transition_moves_from_one_held_gesture_to_another_over_time(tmp_path):
     write_dataset(tmp_path / "src", people=(1,), poses=("fist_moved", "five"), per_pose=1)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     rng = np.random.default_rng(0)
     now, before, which, through = crossval.timed_transitions(
@@ -468,7 +474,7 @@ def test_a_timed_transition_moves_from_one_held_gesture_to_another_over_time(tmp
 
 def test_a_hand_found_mid_change_is_followed_while_younger_than_the_window(tmp_path):
     write_dataset(tmp_path / "src", people=(1,), poses=("fist_moved", "five"), per_pose=1)
-    mmhgr.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
+    mmhgr_data.convert(tmp_path / "src", tmp_path / "c.npz", progress=False)
     frames = mmhgr.load(tmp_path / "c.npz")
     rng = np.random.default_rng(3)
     ends = crossval.transition_ends(frames, 20, rng)

@@ -13,8 +13,8 @@ from cbgo.hands import features as F
 from cbgo.hands.model import HandPose, HandShape, build_hand
 from cbgo.hands.poses import gesture_mean, gesture_pose
 from cbgo.recording import Recorder
-from cbgo.services.static_gesture import bench, takes
 from cbgo.services.static_gesture.classifier import StaticClassifier, default_model_path
+from cbgo_tools.static_gesture import bench, takes
 
 T0 = 1_700_000_000_000_000_000
 

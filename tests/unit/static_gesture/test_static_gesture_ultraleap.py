@@ -6,9 +6,10 @@ import pytest
 from cbgo.hands import features as F
 from cbgo.hands.model import HandShape, build_hand, mirrored_hand
 from cbgo.hands.poses import gesture_mean
-from cbgo.services.static_gesture import invariant, ultraleap
+from cbgo.services.static_gesture import invariant
 from cbgo.services.static_gesture.classifier import StaticClassifier, shipped_model_path
 from cbgo.wire import HANDS_FRAME, validate
+from cbgo_tools.data import ultraleap
 
 POSES = ultraleap.load_poses()
 
@@ -118,8 +119,3 @@ def test_the_bench_scores_every_pose_as_held_and_turned_with_the_shipped_model(c
         assert np.allclose(probs[0], probs[1], atol=1e-6)
     ultraleap.print_scores(fig)
     assert "Gemini" in capsys.readouterr().out
-
-
-def test_the_command_line_names_a_model_it_cannot_load(tmp_path, capsys):
-    assert ultraleap.main(["--model", str(tmp_path / "absent")]) == 2
-    assert "cannot load model" in capsys.readouterr().err

@@ -8,10 +8,10 @@ and the rules are documented in ``cbgo.services.intent.datasets`` (NumPy arrays,
 
 Examples::
 
-    cbgo dataset make D4 -n 4000 --seed 0 -o d4.npz
-    cbgo dataset make D4 -n 4000 --repairable -o d4-repairable.npz
-    cbgo dataset make D5 -n 2000 --seed 1 -o /tmp/d5-test.npz
-    cbgo dataset info d4.npz
+    cbgo data intent make D4 -n 4000 --seed 0 -o d4.npz
+    cbgo data intent make D4 -n 4000 --repairable -o d4-repairable.npz
+    cbgo data intent make D5 -n 2000 --seed 1 -o /tmp/d5-test.npz
+    cbgo data intent info d4.npz
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ DATASET_NAMES = ("D1", "D2", "D3", "D4", "D5")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the sub-commands make and info."""
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sub = parser.add_subparsers(dest="intent_command", metavar="COMMAND", required=True)
     make = sub.add_parser("make", help="generate a dataset")
     make.add_argument("name", choices=DATASET_NAMES, help="which dataset")
     make.add_argument("-n", "--samples", type=int, default=4000, help="observations [4000]")
@@ -38,13 +38,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     make.add_argument("--repairable", action="store_true",
                       help="also draw intents the planner makes feasible (not in the paper)")
     info = sub.add_parser("info", help="summarise a dataset file")
-    info.add_argument("file", type=Path, help="a file written by `cbgo dataset make`")
+    info.add_argument("file", type=Path, help="a file written by `cbgo data intent make`")
 
 
 def run(args: argparse.Namespace) -> int:
     """Makes or describes a dataset; returns the exit code."""
     datasets = importlib.import_module("cbgo.services.intent.datasets")  # numpy, the world
-    if args.command == "make":
+    if args.intent_command == "make":
         if args.samples < 1:
             fail("-n must be at least 1", 2)
         ds = datasets.make(args.name, args.samples, args.seed, progress=True,

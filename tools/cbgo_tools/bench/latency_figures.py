@@ -1,9 +1,9 @@
 """The latency bench's figures: what was observed, per-episode records, measures, the table.
 
-Pure bookkeeping on time stamps (no processes, no Zenoh): `cbgo.bench.latency` runs the
+Pure bookkeeping on time stamps (no processes, no Zenoh): `cbgo_tools.bench.latency` runs the
 pipeline and fills an `Observed`; this module turns it into records (`episode_record`),
 figures (`measure`, `stage_durations`), the goals (`goals`), a tally and the printed table
-(`report`). The measures are defined in `cbgo.bench.latency`'s docstring.
+(`report`). The measures are defined in `cbgo_tools.bench.latency`'s docstring.
 """
 
 from __future__ import annotations

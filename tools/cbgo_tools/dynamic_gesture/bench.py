@@ -51,13 +51,13 @@ measured (`realbench.live_goals`, `realbench.stream_goals`).
 Examples::
 
     cbgo bench dynamic
-    cbgo bench dynamic --real ~/.cache/cbgo/shrec17/datasetShrec
+    cbgo bench dynamic --real ~/.cache/cbgo/shrec17
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --per-class 0   # real Leap recordings
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --mirror   # the same as left hands
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --stream-returns   # streams with returns
     cbgo bench dynamic --real ~/.cache/cbgo/leapmotion-left --per-class 0   # real left hands
-    cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec --plot /tmp/fig
-    cbgo bench dynamic --realism ~/.cache/cbgo/shrec17/datasetShrec --ranges default
+    cbgo bench dynamic --realism ~/.cache/cbgo/shrec17 --plot /tmp/fig
+    cbgo bench dynamic --realism ~/.cache/cbgo/shrec17 --ranges default
     cbgo bench dynamic --live-sim 16           # simulated users through live services
     cbgo bench dynamic --replay-sim 100        # 500 such trials, offline, in about 3 min
     cbgo bench dynamic --plain-strokes 2       # textbook strokes on a grid: what is heard
@@ -79,13 +79,14 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, metrics, wire
-from cbgo.services.dynamic_gesture import plainstrokes, realbench, shrec, simdata, train
 from cbgo.services.dynamic_gesture.classifier import NONE, Classifier, normalised
 from cbgo.services.dynamic_gesture.dtw import dtw_naive, fastdtw_backend
 from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, save_default
 from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig
 from cbgo.simuser.scenario import load_scenario
 from cbgo.simuser.user import SimulatedUser
+from cbgo_tools.data import shrec
+from cbgo_tools.dynamic_gesture import plainstrokes, realbench, simdata, train
 
 BENCH_SEED = 50_000
 

@@ -33,7 +33,7 @@ a copy is not scored; one that cannot be read is skipped with a line saying why.
 Example::
 
     git clone --depth 1 https://github.com/sluyters/QuantumLeap
-    python -m cbgo.services.static_gesture.guinevere convert \
+    python -m cbgo_tools.data.guinevere convert \
         QuantumLeap/backend/src/datasets/static/guinevre-static2
     # prints the cbgo bench static --takes ... line that scores what it wrote
 """
@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, wire
+from cbgo.config import cache_dir
 from cbgo.hands.leapjs import to_frames
 from cbgo.recording import Recorder
 
@@ -56,7 +57,7 @@ POSES = {"point-index": "point", "thumb": "thumbsup", "flat": "five", "idle": "i
 """Guinevere's pose folders → the label a take is scored as (``idle``: an unknown pose)."""
 LEFT_OUT = ("grab", "pinch")
 """Poses whose hands are not the paper's gestures of those names (module docstring)."""
-DEFAULT_DST = Path.home() / ".cache" / "cbgo" / "guinevere-static"
+DEFAULT_DST = cache_dir() / "guinevere-static-takes"
 KEY = f"cbgo/{keys.HANDS_FRAME.suffix}"
 
 
@@ -153,16 +154,16 @@ def cached_takes(directory: Path = DEFAULT_DST) -> list[str]:
     return [f"{path.name.split('-', 1)[0]}={path}" for path in paths]
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``convert SRC [DST]``: writes the takes and prints the command that scores them."""
-    parser = argparse.ArgumentParser(prog="python -m cbgo.services.static_gesture.guinevere",
-                                     description=__doc__.split("\n\n")[0])
-    sub = parser.add_subparsers(dest="command", required=True)
-    conv = sub.add_parser("convert", help="write the scored poses as takes (MCAP)")
-    conv.add_argument("src", type=Path, help="the guinevre-static2 folder")
-    conv.add_argument("dst", type=Path, nargs="?", default=DEFAULT_DST,
-                      help=f"where to write the takes [{DEFAULT_DST}]")
-    args = parser.parse_args(argv)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds the source folder and where the takes go."""
+    parser.add_argument("src", type=Path, nargs="?", default=cache_dir() / "guinevere-static",
+                        help="the guinevre-static2 folder [the fetched copy]")
+    parser.add_argument("dst", type=Path, nargs="?", default=DEFAULT_DST,
+                        help=f"where to write the takes [{DEFAULT_DST}]")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Writes the takes and prints the command that scores them."""
     try:
         specs = convert(args.src, args.dst)
     except FileNotFoundError as e:
@@ -174,7 +175,3 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {len(specs)} takes under {args.dst}; score them with:\n"
           f"cbgo bench static --takes {' '.join(specs)}")
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

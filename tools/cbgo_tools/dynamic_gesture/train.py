@@ -26,7 +26,7 @@
 
 Examples::
 
-    cbgo train dynamic --real ~/.cache/cbgo/shrec17/datasetShrec --folds 4
+    cbgo train dynamic --real ~/.cache/cbgo/shrec17 --folds 4
     cbgo train dynamic --real DIR --out services/dynamic_gesture/models/default.json  # ship it
     cbgo train dynamic --users 8 --calib-users 4 --out /tmp/dyn.json   # simulated only, quick
 """
@@ -42,7 +42,7 @@ import numpy as np
 
 from cbgo import metrics
 from cbgo.config import data_dir
-from cbgo.services.dynamic_gesture import realbench, shrec, simdata, trajnet
+from cbgo.services.dynamic_gesture import trajnet
 from cbgo.services.dynamic_gesture.classifier import (
     MIRROR,
     MIRROR_X,
@@ -63,6 +63,8 @@ from cbgo.services.dynamic_gesture.stroke import (
     reported,
 )
 from cbgo.wire import DYNAMIC_GESTURES
+from cbgo_tools.data import shrec
+from cbgo_tools.dynamic_gesture import realbench, simdata
 
 TRAIN_SEED = 1000
 CALIB_SEED = 2000

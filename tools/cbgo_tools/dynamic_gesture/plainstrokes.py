@@ -24,9 +24,9 @@ from collections import Counter
 import numpy as np
 
 from cbgo.hands.model import HandShape, build_hand, neutral_pose
-from cbgo.services.dynamic_gesture import realbench
 from cbgo.simuser.motion import min_jerk
 from cbgo.simuser.user import SWIPE_DIRECTIONS
+from cbgo_tools.dynamic_gesture import realbench
 
 RATE_HZ = 60.0
 LENGTHS_MM = (60.0, 90.0, 130.0, 180.0, 250.0)

@@ -12,7 +12,7 @@ Figures (goals from issue 4 in brackets):
    from Ultraleap's Unity plugin, the only LMC2-generation skeletons we have): each pose's
    answer as held (fingers up, palm to the user) and turned like the training hands.
 1c. **Guinevere's static poses** (``guinevere``: another Leap Motion and person, evaluation only;
-   when ``python -m cbgo.services.static_gesture.guinevere convert SRC`` has written them to
+   when ``python -m cbgo_tools.data.guinevere convert SRC`` has written them to
    its cache): point, thumbs-up and a relaxed hand (an unknown pose), per take.
 1d. **Your own recorded takes** (``--takes LABEL=FILE.mcap ...``, then nothing else is
    measured): recordings made with ``cbgo record ... hands/frame`` while one pose was held,
@@ -37,7 +37,7 @@ Figures (goals from issue 4 in brackets):
    or with top probability < 0.5 [≥ 90 %]; accuracy by tracking confidence, and on the
    frames whose tracker's own finger flags show their pose apart from the others, and with the
    held-out hands turned about the palm (pitched, fingers up, rolled, palm up)
-   (``cbgo.services.static_gesture.crossval``). ``--no-crossval`` skips it (it trains one model
+   (``cbgo_tools.static_gesture.crossval``). ``--no-crossval`` skips it (it trains one model
    per fold: minutes).
 5. **Latency** through Zenoh: a router, leap-bridge (``static-all`` looping at ``--rate-hz``)
    and static-gesture as real processes; frame ``ts`` (stamped by leap-bridge just before it
@@ -72,15 +72,7 @@ from cbgo.hands import features as F
 from cbgo.hands.data import load_real_features
 from cbgo.hands.features import hands_features
 from cbgo.metrics import format_confusion, format_goals
-from cbgo.services.static_gesture import (
-    crossval,
-    guinevere,
-    invariant,
-    mmhgr,
-    takes,
-    train,
-    ultraleap,
-)
+from cbgo.services.static_gesture import invariant, mmhgr, train
 from cbgo.services.static_gesture.classifier import (
     DEFAULT_SAMPLES,
     NONE,
@@ -88,6 +80,8 @@ from cbgo.services.static_gesture.classifier import (
     StaticClassifier,
     default_model_path,
 )
+from cbgo_tools.data import guinevere, ultraleap
+from cbgo_tools.static_gesture import crossval, takes
 
 EVAL_RELATIVE = Path("..") / "shared" / "eval" / "leap_static_features_test.npz"
 THUMB_PERCENTILES = (1, 5, 50, 95)
@@ -375,7 +369,7 @@ def _print(fig: dict) -> None:
         print()
     if fig.get("guinevere") is None:
         print(f"Guinevere's static takes: not in {guinevere.DEFAULT_DST} (python -m "
-              "cbgo.services.static_gesture.guinevere convert SRC); skipped\n")
+              "cbgo_tools.data.guinevere convert SRC); skipped\n")
     else:
         takes.print_figures(fig["guinevere"], m["model"], "Guinevere's static takes")
         print()

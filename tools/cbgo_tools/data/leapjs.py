@@ -6,7 +6,7 @@ set (UCLouvain; 4 people, 23 dynamic gestures, 4 takes each; a public copy in th
 repository ``sluyters/QuantumLeap``, folder ``backend/src/datasets/dynamic/guinevere``) holds
 swipes in the four directions with the palm or the index finger, palm rotations and hand
 gestures that are no swipe (tap, pinch, thumbs, hand opening). It has no licence file, so
-nothing of it is committed: copy that folder into a cache (``~/.cache/cbgo/guinevere``) and
+nothing of it is committed: fetch that folder into the cache (``cbgo data fetch guinevere``) and
 point ``cbgo bench dynamic --real DIR`` at it. It is used for **evaluation only**: nothing
 is fitted, tuned or selected on it.
 
@@ -30,15 +30,16 @@ that across (y or z), and it ends at least 0.4 of its x range from where it star
 that swipes and comes back all the way could have meant either move). 20 of its 32 recordings
 pass, 12 people: 10 left-hand and 10 right-hand swipes.
 
-- ``python -m cbgo.services.dynamic_gesture.leapjs swipes SRC DST`` writes them as a set of
+- ``cbgo data convert leapmotion-all [SRC [DST]]`` writes them as a set of
   the layout above, each recording whole (every hand it holds, as a sensor reports them), for
   ``cbgo bench dynamic --real DST``;
-- ``... left-hands SRC DST`` writes only the left-hand ones, left-hand frames only: real left
+- ``... --left-only`` writes only the left-hand ones, left-hand frames only: real left
   hands alone.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from dataclasses import dataclass
@@ -46,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cbgo.config import cache_dir
 from cbgo.hands.leapjs import to_frames, vector
 
 
@@ -109,7 +111,7 @@ def read_set(root: Path) -> list[Recording]:
             f"no LeapJS recordings (NAME-TAKE.json) under {root}: copy the Guinevere folder of "
             f"github.com/sluyters/QuantumLeap (backend/src/datasets/dynamic/guinevere) there, "
             f"or write leapmotion-all's swipes there (python -m "
-            f"cbgo.services.dynamic_gesture.leapjs swipes SRC {root})")
+            f"cbgo_tools.data.leapjs swipes SRC {root})")
     return out
 
 
@@ -184,35 +186,26 @@ def arrange_swipes(src: Path, dst: Path, sides: tuple[str, ...] = ("left", "righ
     return written
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``swipes SRC DST`` and ``left-hands SRC DST``: see the module docstring."""
-    import argparse  # noqa: PLC0415
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds the source folder, where the set goes, and ``--left-only``."""
+    parser.add_argument("src", type=Path, nargs="?", default=cache_dir() / "leapmotion-all",
+                        help="the leapmotion-all folder (precedent/, suivant/) [the fetched copy]")
+    parser.add_argument("dst", type=Path, nargs="?", default=None,
+                        help="where to write the set [leapmotion-swipes, or leapmotion-left "
+                             "with --left-only, in the cache]")
+    parser.add_argument("--left-only", action="store_true",
+                        help="only the left-hand swipes, left-hand frames only")
 
-    parser = argparse.ArgumentParser(
-        prog="python -m cbgo.services.dynamic_gesture.leapjs",
-        description="Real Leap Motion recordings (LeapJS frames) for the dynamic-gesture bench.")
-    sub = parser.add_subparsers(dest="command", required=True)
-    cache = Path.home() / ".cache" / "cbgo"
-    for command, default, text in (
-            ("swipes", "leapmotion-swipes", "write the swipes of leapmotion-all, both hands, "
-                                            "as a set for `cbgo bench dynamic --real`"),
-            ("left-hands", "leapmotion-left", "write its left-hand swipes only, left-hand "
-                                              "frames only")):
-        one = sub.add_parser(command, help=text, description=text)
-        one.add_argument("src", type=Path, help="the leapmotion-all folder (precedent/, suivant/)")
-        one.add_argument("dst", type=Path, nargs="?", default=cache / default,
-                         help=f"where to write it [~/.cache/cbgo/{default}]")
-    args = parser.parse_args(argv)
-    sides = ("left", "right") if args.command == "swipes" else ("left",)
+
+def run(args: argparse.Namespace) -> int:
+    """Writes the swipes as a set for ``cbgo bench dynamic --real``."""
+    sides = ("left",) if args.left_only else ("left", "right")
+    dst = args.dst or cache_dir() / ("leapmotion-left" if args.left_only else "leapmotion-swipes")
     try:
-        count = arrange_swipes(args.src, args.dst, sides)
+        count = arrange_swipes(args.src, dst, sides)
     except (OSError, ValueError, KeyError) as exc:  # missing, unreadable or not LeapJS JSON
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(f"wrote {count} {'swipes' if len(sides) == 2 else 'left-hand swipes'} under "
-          f"{args.dst}; cbgo bench dynamic --real {args.dst} --per-class 0")
+          f"{dst}; cbgo bench dynamic --real {dst} --per-class 0")
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -35,19 +35,16 @@ Rules:
 
 Example::
 
-    python -m cbgo.services.static_gesture.ultraleap        # the shipped model on the poses
+    python -m cbgo_tools.data.ultraleap        # the shipped model on the poses
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from cbgo.errors import ConfigError
 from cbgo.hands import features as F
 from cbgo.services.static_gesture.classifier import NONE, is_rejected
 from cbgo.wire import BONE_TYPES, FINGER_TYPES
@@ -222,31 +219,3 @@ def print_scores(fig: dict) -> None:
               + ", ".join(f"{d['pose']} (thumb {d['elevation_deg']:.0f}° from level) "
                           f"{d['answer']}:{d['p']:.2f}{'' if d['right'] else ' ✗'}"
                           for d in down))
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Scores a static-gesture model on Ultraleap's poses."""
-    from cbgo.services.static_gesture.classifier import (  # noqa: PLC0415
-        StaticClassifier,
-        default_model_path,
-    )
-
-    parser = argparse.ArgumentParser(
-        prog="python -m cbgo.services.static_gesture.ultraleap",
-        description="Score a static-gesture model on Ultraleap's own Gemini-tracked hand "
-                    "poses (vendored from UnityPlugin), as held and turned like the training "
-                    "hands.")
-    parser.add_argument("--model", type=Path, default=None,
-                        help="model path (default: the one the service loads)")
-    args = parser.parse_args(argv)
-    try:
-        model = StaticClassifier.load(args.model or default_model_path())
-    except ConfigError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    print_scores(score_poses(model))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

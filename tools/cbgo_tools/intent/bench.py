@@ -42,7 +42,7 @@ from tqdm import tqdm
 
 from cbgo.services.intent import datasets
 from cbgo.services.intent.models import MODEL_KINDS, STEPS
-from cbgo.services.intent.train import evaluate, fit
+from cbgo_tools.intent.train import evaluate, fit
 
 # The paper's code's recorded test accuracies (%) (shared/data/README.md), for comparison.
 PAPER = {

@@ -5,8 +5,8 @@ skeletal dataset*) has 28 people performing 14 gestures with an Intel RealSense 
 sequence is a ``skeletons_world.txt`` of 22 joints per frame (x, y, z in metres), at 30 Hz. A
 public copy sits in the GitHub repository ``giach68/gesturesCodes``, folder ``datasetShrec``
 (with the official ``train_gestures.txt`` / ``test_gestures.txt``). It has no licence, so
-nothing of it is committed: fetch it into a cache (``~/.cache/cbgo/shrec17/datasetShrec``) and
-point the benches at that folder. **Only the people of the official train split are used for
+nothing of it is committed: fetch it into the cache (``cbgo data fetch shrec17``) or
+point the benches at a copy. **Only the people of the official train split are used for
 fitting, tuning or selecting anything** (`split_people`); the test split's people are kept for
 acceptance checks, and `read_split` refuses to mix them.
 
@@ -36,16 +36,16 @@ Conversion (write-down of every assumption):
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from cbgo.config import cache_dir
 from cbgo.hands.model import GRAB_FULL_CURL, pinch_strength
-from cbgo.services.dynamic_gesture.simdata import Labelled, UserData, without_returns
 from cbgo.services.dynamic_gesture.stroke import Segmenter
 from cbgo.wire import BONE_TYPES, FINGER_TYPES, SCHEMA_VERSION
+from cbgo_tools.dynamic_gesture.simdata import Labelled, UserData, without_returns
 
 RATE_HZ = 30.0
 N_JOINTS = 22
@@ -63,9 +63,8 @@ BONE_WIDTH_MM = (20.0, 18.0, 17.0, 16.0, 15.0)
 
 
 def default_root() -> Path:
-    """Returns where the data set is looked for: ``CBGO_SHREC_DIR`` or the user cache."""
-    env = os.environ.get("CBGO_SHREC_DIR")
-    return Path(env) if env else Path.home() / ".cache/cbgo/shrec17/datasetShrec"
+    """Returns where ``cbgo data fetch shrec17`` puts the data set (`cbgo.config.cache_dir`)."""
+    return cache_dir() / "shrec17"
 
 
 @dataclass(frozen=True)
@@ -133,7 +132,7 @@ def read_split(root: Path, split: str = "train", gestures=None) -> list[Sequence
     if not (root / "train_gestures.txt").is_file():
         raise FileNotFoundError(
             f"no SHREC'17 data in {root}: fetch github.com/giach68/gesturesCodes and point "
-            f"--real (or CBGO_SHREC_DIR) at its datasetShrec folder")
+            f"--real at its datasetShrec folder, or fetch it: `cbgo data fetch shrec17`")
     if split_people(root, "train") & split_people(root, "test"):
         raise ValueError("the train and test splits share people")
     out = []

@@ -2,9 +2,9 @@
 
 Examples::
 
-    python -m cbgo.services.intent.evaluate                   # the shipped model
-    python -m cbgo.services.intent.evaluate --model /tmp/old/ours --seed 6000
-    python -m cbgo.services.intent.evaluate --timing 200     # the cost of one inference only
+    python -m cbgo_tools.intent.evaluate                   # the shipped model
+    python -m cbgo_tools.intent.evaluate --model /tmp/old/ours --seed 6000
+    python -m cbgo_tools.intent.evaluate --timing 200     # the cost of one inference only
 
 Prints, on observations drawn with seeds neither `cbgo train intent` (0, 1000, 2000) nor
 `cbgo bench intent` (below 3000) uses:
@@ -43,8 +43,8 @@ from cbgo.services.intent.decide import DecisionConfig, decide
 from cbgo.services.intent.engine import IntentEngine
 from cbgo.services.intent.main import default_model_path
 from cbgo.services.intent.models import Batch, OursModel
-from cbgo.services.intent.train import evaluate
 from cbgo.world import DEFAULT_GRID, OBJECT_AGNOSTIC, Robot, Scene, SceneObject
+from cbgo_tools.intent.train import evaluate
 
 SERVICE_DECISION = DecisionConfig()  # the service's defaults are the decision's
 
@@ -186,7 +186,7 @@ def shares(counts: Counter) -> str:
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
     """Reads the command line."""
-    parser = argparse.ArgumentParser(prog="python -m cbgo.services.intent.evaluate",
+    parser = argparse.ArgumentParser(prog="python -m cbgo_tools.intent.evaluate",
                                      description=__doc__.split("\n\n")[0])
     parser.add_argument("--model", type=Path, default=None,
                         help="model path (<base>.pt + <base>.json) [the shipped model]")

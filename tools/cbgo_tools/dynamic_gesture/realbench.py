@@ -44,7 +44,7 @@ checks. The LeapJS set is never fitted on: all its people are scored (``--split`
 
 Examples::
 
-    cbgo bench dynamic --real ~/.cache/cbgo/shrec17/datasetShrec
+    cbgo bench dynamic --real ~/.cache/cbgo/shrec17
     cbgo bench dynamic --real ~/.cache/cbgo/guinevere --per-class 0   # every Leap recording
     cbgo bench dynamic --real DIR --per-class 5 --streams 2 --json /tmp/real.json
 """
@@ -65,7 +65,6 @@ import numpy as np
 from cbgo import keys, metrics, wire
 from cbgo.hands.features import hand_basis
 from cbgo.hands.model import mirrored_hand
-from cbgo.services.dynamic_gesture import leapjs, shrec, simdata
 from cbgo.services.dynamic_gesture.classifier import MIRROR, path_of
 from cbgo.services.dynamic_gesture.library import trained_path
 from cbgo.services.dynamic_gesture.stroke import (
@@ -80,6 +79,8 @@ from cbgo.simuser.motion import CENTRE_MM, min_jerk
 from cbgo.simuser.scenario import IDLE_MOTIONS, Episode, GestureStep, Scenario
 from cbgo.simuser.user import SWIPE_WAY_LENGTH, SimulatedUser, swipe_way
 from cbgo.wire import DYNAMIC_GESTURES
+from cbgo_tools.data import leapjs, shrec
+from cbgo_tools.dynamic_gesture import simdata
 
 OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture of ours
 NOTHING = "nothing"

@@ -66,7 +66,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from cbgo import keys, wire
-from cbgo.bench.latency_figures import (
+from cbgo_tools.bench.latency_figures import (
     Frame,
     Observed,
     Run,

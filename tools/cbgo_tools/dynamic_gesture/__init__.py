@@ -1,0 +1,1 @@
+"""Offline tools of the dynamic-gesture service: training, benchmarks, real-people trials."""

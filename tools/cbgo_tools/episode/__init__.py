@@ -1,0 +1,1 @@
+"""Offline tools of the episode service: benchmarks."""

@@ -1,0 +1,1 @@
+"""Offline tools of the static-gesture service: benchmarks, cross-validation, scoring takes."""
