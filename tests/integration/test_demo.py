@@ -5,14 +5,19 @@ the seven services), on a free loopback port, and reads what it wrote: its exit 
 per-step results, the MCAP recording and the figures.
 
 - With mujoco-sim: every scripted step ends as scripted, with renders of the world.
+- Against a running `cbgo up --robot dry`, `--no-start` plays on the robot that is alive, and
+  asking for the other one ends at once, naming the option that fits.
 - With dry-robot and `--faults all`: each of the seven services and the router is killed with
   SIGKILL once mid-session; every one comes back as a new process without restarting anyone
   else, lost episodes are repeated, and the session still ends as scripted.
 """
 
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -101,3 +106,31 @@ def test_the_session_survives_kill_9_of_every_process_with_dry_robot(tmp_path):
         f"{n} {f['back_s']:.2f}" for n, f in sorted(faults.items())))
     assert not (out / "before.png").exists()  # dry-robot has no renderer, and says so
     assert "dry-robot has no renderer" in (out / "timeline.txt").read_text()
+
+
+@pytest.mark.timeout(600)
+def test_the_demo_plays_on_the_robot_of_a_running_system(tmp_path):
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    with open(tmp_path / "up.log", "wb") as log:
+        up = subprocess.Popen([sys.executable, "-m", "cbgo.cli.main", "up", "--robot", "dry",
+                               "--no-color", "--router-listen", endpoint], stdout=log,
+                              stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        demo = [sys.executable, "-m", "cbgo.cli.main", "demo", "--no-start", "--connect",
+                endpoint, "--connect-timeout", "60"]
+        out = tmp_path / "right"
+        done = subprocess.run([*demo, "-o", str(out)], capture_output=True, text=True,
+                              timeout=400)
+        result = json.loads((out / "result.json").read_text()) if (
+            out / "result.json").exists() else None
+        check_story(done, result)
+        assert result["robot"] == "dry-robot"
+        assert "the running system's robot: dry-robot" in done.stdout
+        started = time.monotonic()
+        wrong = subprocess.run([*demo, "-o", str(tmp_path / "wrong"), "--robot", "mujoco"],
+                               capture_output=True, text=True, timeout=240)
+        assert wrong.returncode == 1 and "--robot dry" in wrong.stdout, wrong.stdout[-2000:]
+        assert time.monotonic() - started < 120  # not the 180 s wait for a robot never there
+    finally:
+        os.killpg(up.pid, signal.SIGTERM)
+        up.wait(30)

@@ -53,9 +53,10 @@ PLAN_TIMEOUT_S = {"mujoco-sim": 240.0, "dry-robot": 30.0}
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds demo's flags."""
-    parser.add_argument("--robot", choices=sorted(ROBOTS), default="mujoco",
+    parser.add_argument("--robot", choices=sorted(ROBOTS), default=None,
                         help="which robot executes the plans: mujoco (mujoco-sim, physics) or "
-                             "dry (dry-robot, the symbolic world model) [mujoco]")
+                             "dry (dry-robot, the symbolic world model) [mujoco; with "
+                             "--no-start, the one that is alive]")
     parser.add_argument("--session", default="paper", metavar="NAME|FILE",
                         help="the scripted session: a bundled name or a YAML file [paper]")
     parser.add_argument("-o", "--out", metavar="DIR",
@@ -180,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
     except ConfigError as e:
         fail(str(e), 2)
     _select_steps(script, args.steps)
-    robot = ROBOTS[args.robot]
+    robot = ROBOTS[args.robot or "mujoco"]
     out = Path(args.out or time.strftime("out/demo-%Y%m%d-%H%M%S"))
     out.mkdir(parents=True, exist_ok=True)
     lines: list[str] = []
@@ -218,9 +219,11 @@ def _run_session(args, script, robot: str, out: Path, say, lines: list[str]) -> 
     with session(args, "cbgo-demo") as (sess, keys):
         recorder = Recorder(out / "session.mcap", prefix=keys.prefix, keys=[keys.data])
         inbox = Inbox(sess, keys, recorder)
-        runner = Runner(sess, inbox, keys, script, say, robot,
-                        args.plan_timeout or PLAN_TIMEOUT_S[robot], faults)
         try:
+            if args.no_start:
+                robot = _robot_of_running_system(inbox, args.robot, say, args.ready_timeout)
+            runner = Runner(sess, inbox, keys, script, say, robot,
+                            args.plan_timeout or PLAN_TIMEOUT_S[robot], faults)
             report = _session_body(args, runner, inbox, script, robot, out, say, started)
         except DemoError as e:
             say(f"cbgo demo: {e}")
@@ -238,6 +241,34 @@ def _run_session(args, script, robot: str, out: Path, say, lines: list[str]) -> 
                                 _plot_episode(results, args.plot_step), out / "episode.png", say)
     return _report(args, script, robot, out, results, runner.recoveries, timing, bool(plotted),
                    say, lines)
+
+
+def _robot_of_running_system(inbox, chosen: str | None, say, timeout: float) -> str:
+    """Returns the robot service of a running system: the one asked for, or the one alive.
+
+    Waits for the first robot's liveliness token. A robot asked for (``--robot``) that is not
+    the one alive ends the demo at once, naming the option that fits.
+    """
+    from cbgo.demo.runner import DemoError
+
+    alive = inbox.wait_any(set(ROBOTS.values()), timeout)
+    wanted = ROBOTS[chosen] if chosen else None
+    if wanted and wanted not in alive and alive:
+        other = sorted(alive)[0]
+        flag = next(k for k, v in ROBOTS.items() if v == other)
+        raise DemoError(f"--robot {chosen} asks for {wanted}, but the running system's robot "
+                        f"is {other}: run with --robot {flag}")
+    if wanted:
+        return wanted
+    if len(alive) == 1:
+        (robot,) = alive
+        say(f"the running system's robot: {robot}")
+        return robot
+    if len(alive) > 1:
+        raise DemoError(f"two robots are alive ({', '.join(sorted(alive))}): choose one with "
+                        f"--robot {'|'.join(sorted(ROBOTS))}")
+    raise DemoError(f"no robot alive after {timeout:g} s: neither "
+                    f"{' nor '.join(sorted(ROBOTS.values()))} (is the system up at --connect?)")
 
 
 def _session_body(args, runner, inbox, script, robot, out, say, started):

@@ -137,6 +137,17 @@ class Inbox:
                 self._changed.wait(left)
             return True
 
+    def wait_any(self, names: set[str], timeout: float) -> set[str]:
+        """Waits until one of the names has a liveliness token; returns those that do."""
+        deadline = time.monotonic() + timeout
+        with self._changed:
+            while not names & self.alive:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self._changed.wait(left)
+            return names & self.alive
+
     def token_change(self, name: str, present: bool, after: float,
                      timeout: float) -> float | None:
         """Waits for `name`'s token to appear/disappear after time `after`; returns when."""
