@@ -34,6 +34,8 @@ TRAINERS: dict[str, tuple[str, str]] = {
     "static": ("cbgo.services.static_gesture.train", "static-gesture Bayesian MLP"),
     "dynamic": ("cbgo_tools.dynamic_gesture.train", "dynamic-gesture templates + calibration"),
     "intent": ("cbgo_tools.intent.train", "intent model (order-invariant Bayesian) on D4"),
+    "hands": ("cbgo_tools.hands.calibrate",
+              "the simulated hand's poses, calibrated against the real Leap recordings"),
 }
 
 # Which service each benchmark and trainer measures or trains (`cbgo up --list` shows them).

@@ -7,7 +7,7 @@ Modules:
 - ``model``: ``HandShape`` (a person's anatomy), ``HandPose`` (joint angles and palm
   orientation), ``build_hand`` (every field of a contract hand), ``blend``, ``neutral_pose``.
 - ``poses``: the 8 static gestures as calibrated mean poses and spreads (``gesture_pose``).
-- ``calibrate``: fits ``poses.json`` to the real recordings (``python -m cbgo.hands.calibrate``).
+- ``poses.json`` is fitted to the real recordings by ``cbgo train hands`` (an offline tool).
 - ``data``: the vendored real recordings (``load_real_features``).
 - ``leapjs``: Leap Motion frames in LeapJS's JSON format as contract hands (``to_frames``).
 

@@ -23,7 +23,7 @@ doubt about it: in every recorded gesture the hand ``direction`` and ``unit(palm
 agree to ~0.15 rad, while the index..pinky metacarpals differ from the hand direction by ~π in
 yaw and by about twice the hand's pitch — what an anti-parallel vector gives, and what no real
 hand produces with base-to-tip directions. Fitting the hand model to the recordings
-(``cbgo.hands.calibrate``) with base-to-tip directions leaves a residual ~25× larger than with
+(``cbgo train hands``) with base-to-tip directions leaves a residual ~25× larger than with
 tip-to-base ones. A contract frame (docs/protocol.md: joints in anatomical order, ``direction``
 towards the fingers) therefore has its bone directions reversed here, and only here, so that
 one feature space holds for real devices, simulated hands and the recordings alike.

@@ -1,4 +1,4 @@
-"""Reading ``poses.json``, the calibrated hand data (``python -m cbgo.hands.calibrate`` writes it).
+"""Reading ``poses.json``, the calibrated hand data (``cbgo train hands`` writes it).
 
 Its own module because both the hand model (`cbgo.hands.model`: the default hand's shape) and
 the gesture poses (`cbgo.hands.poses`) read it; neither imports the other for it.
@@ -22,8 +22,8 @@ def load_poses() -> dict:
     data = json.loads(text)
     missing = set(STATIC_GESTURES) - set(data["gestures"])
     if missing:
-        raise ValueError(f"poses.json lacks {sorted(missing)}; rerun python -m "
-                         "cbgo.hands.calibrate")
+        raise ValueError(f"poses.json lacks {sorted(missing)}; rerun `cbgo train hands` "
+                         "(the offline tools of a cbgo checkout)")
     return data
 
 

@@ -7,7 +7,6 @@ import json
 import numpy as np
 import pytest
 
-from cbgo.hands.calibrate import calibrate
 from cbgo.hands.data import load_real_features, real_features_sha256
 from cbgo.hands.model import PARAM_NAMES
 from cbgo.hands.poses import (
@@ -19,13 +18,14 @@ from cbgo.hands.poses import (
     parameter_correlation,
 )
 from cbgo_tools.bench.hands import KEPT, simulate, train_knn, train_mlp
+from cbgo_tools.hands.calibrate import calibrate
 
 
 def test_poses_json_covers_every_gesture_and_says_how_it_was_made():
     data = load_poses()
     assert set(data["gestures"]) == set(STATIC_GESTURES)
     header = data["header"]
-    assert header["command"].startswith("python -m cbgo.hands.calibrate")
+    assert header["command"].startswith("cbgo train hands")
     assert header["source_sha256"] == real_features_sha256()
     for entry in data["gestures"].values():
         assert list(entry["mean_deg"]) == list(PARAM_NAMES)

@@ -34,8 +34,8 @@ Rules:
 
 Examples::
 
-    python -m cbgo.hands.calibrate                 # writes cbgo/hands/poses.json
-    python -m cbgo.hands.calibrate --out /tmp/poses.json --restarts 4 --steps 300
+    cbgo train hands                 # writes shared/cbgo/hands/poses.json
+    cbgo train hands --out /tmp/poses.json --restarts 4 --steps 300
 """
 
 from __future__ import annotations
@@ -43,9 +43,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import time
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -57,7 +57,7 @@ from cbgo.hands import model as M
 from cbgo.hands.data import load_real_features, real_features_sha256
 from cbgo.hands.poses import correlated_normal, parameter_correlation
 
-POSES_FILE = Path(__file__).with_name("poses.json")
+POSES_FILE = Path(str(resources.files("cbgo.hands") / "poses.json"))
 TRUSTED = np.array([j for j in range(F.N_FEATURES) if j not in F.UNTRUSTED_FEATURES])
 USER_SCALE_SD = 0.3 / math.sqrt(12.0)  # simulated users' sizes: uniform in [0.85, 1.15]
 _ANGLE_FLOOR, _DISTANCE_FLOOR = 0.03, 2.0
@@ -377,7 +377,7 @@ def _header(restarts: int, steps: int, seed: int) -> dict:
         "what": "static gesture poses of cbgo.hands.model, calibrated against real Leap "
                 "recordings (mean and per-parameter spread, degrees; poses are anatomical, "
                 "valid for both sides)",
-        "command": f"python -m cbgo.hands.calibrate --restarts {restarts} --steps {steps} "
+        "command": f"cbgo train hands --restarts {restarts} --steps {steps} "
                    f"--seed {seed}",
         "source": "cbgo/data/leap_static_features.npz",
         "source_sha256": real_features_sha256(),
@@ -386,20 +386,20 @@ def _header(restarts: int, steps: int, seed: int) -> dict:
                   "image; stage 1 torch autograd fit of the means (and the default hand) to "
                   "the real robust feature centres (features 2..5 excluded); stage 2 "
                   "linearised spread fit; stage 3 palm yaw from the real yaw-jump fractions "
-                  "(see cbgo.hands.calibrate)",
+                  "(see cbgo_tools.hands.calibrate)",
     }
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Command line entry: calibrate and write the poses file."""
-    parser = argparse.ArgumentParser(prog="python -m cbgo.hands.calibrate",
-                                     description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds where to write and the optimiser's budget."""
     parser.add_argument("--out", type=Path, default=POSES_FILE, help="where to write the JSON")
     parser.add_argument("--restarts", type=int, default=8, help="random starts [8]")
     parser.add_argument("--steps", type=int, default=800, help="optimiser steps [800]")
     parser.add_argument("--seed", type=int, default=0, help="random seed [0]")
-    args = parser.parse_args(argv)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Calibrates and writes the poses file."""
     t0 = time.perf_counter()
     result = calibrate(args.restarts, args.steps, args.seed)
     args.out.write_text(json.dumps(result, indent=1) + "\n")
@@ -407,7 +407,3 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {args.out} in {time.perf_counter() - t0:.1f} s; fit loss per gesture: "
           f"{losses}")
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Offline tools of the hand model: calibrating its poses against real recordings."""
