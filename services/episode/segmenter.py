@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 # Frame stamps are a sensor's (or a clock's) and jitter, and k frame periods add up to a hair
 # less than k/rate in floating point: without a tolerance, at 60 Hz the 9th empty frame
-# (0.15 s) missed the default debounce and the 10th ended the episode, 17 ms late.
+# (0.15 s) would miss the default debounce and the 10th end the episode, 17 ms late.
 STAMP_TOLERANCE_S = 0.002
 
 

@@ -16,8 +16,8 @@ Each observation is drawn as in the paper (section "Artificial datasets generati
    normalised to sum 1;
 6. the focus: the target's position plus N(0, σ) per axis, σ = 0.1 grid cell (1.2 cm).
 
-D5 is D4 with the scene's object order shuffled in every observation (the paper's code: its
-fixed-slot M5 fell from 97.4 % to 92.6 %); with the same seed, D5 holds exactly D4's
+D5 is D4 with the scene's object order shuffled in every observation (the paper reports its
+fixed-slot M5 at 97.4 % on D4 and 92.6 % on D5); with the same seed, D5 holds exactly D4's
 observations, shuffled.
 
 **Repairable intents** (``repairable=True``; not in the paper): step 2 also draws the
@@ -32,8 +32,7 @@ into a closed drawer gets the open drawer's gesture (D4: user1 ``five``, user2 `
 pick up while holding something gets the target's own entry (setting the held object aside
 does not change the target). The assumption behind it: a person whose robot runs the planner
 asks for the goal with the gesture they use for that goal, not for the repairs. Without
-``repairable`` (the default) the paper's datasets are unchanged: a seed gives the same
-observations as before the option existed.
+``repairable`` (the default) the draws are the paper's datasets.
 
 File format (``cbgo data intent make``): a NumPy ``.npz`` (no pickles; load with
 ``allow_pickle=False``), N observations, objects padded to K = 7 slots in scene order:

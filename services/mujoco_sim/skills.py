@@ -52,9 +52,10 @@ HANDLE_HALF_WIDTH = 0.012
 # m the TCP may sit above the handle knob's centre when grasping it, highest first: the pads
 # still close on the knob's upper half, and at 0.014 the hand's underside (HAND_BOTTOM above
 # the TCP) is 0.024 m above the cabinet's top, so it clears a neighbouring cabinet (0.09..0.11
-# m) or a low tower beside it; level with the knob it grazed them and stalled (bench: stuck
-# 5-9 mm away, closed 8-13 % short). Lower ones when the wrist would touch a tower on the
-# cabinet itself; the first whose grasp and end poses are collision-free is taken, else 0.
+# m) or a low tower beside it; level with the knob it grazes them and stalls (`cbgo bench sim`
+# with the grasp level: stuck 5-9 mm away, closed 8-13 % short). Lower ones when the wrist would
+# touch a tower on the cabinet itself; the first whose grasp and end poses are collision-free
+# is taken, else 0.
 HANDLE_GRASP_LIFTS = (0.014, 0.007, 0.0)
 HAND_BOTTOM = 0.045  # m from the TCP up to the underside of the hand
 HAND_HALF = (0.035, 0.105)  # m, the hand's half extents across and along the fingers' axis
@@ -63,8 +64,8 @@ LOWER_SPEED = 0.03  # m/s while lowering a held load onto its support
 REST_SPEED = 0.01  # m/s (and rad/s) under which a released load counts as at rest
 REST_TIMEOUT_S = 1.5  # s at most to wait for a released load to come to rest
 # s at most for loose objects to come to rest after a failure: a cup dropped from travel
-# height bounces, topples and rolls on its side for about 2 s (measured), 1.5 s reported it
-# 5 cm short of where it came to lie
+# height bounces, topples and rolls on its side for about 2 s (measured), so 1.5 s would
+# report it 5 cm short of where it comes to lie
 FAILURE_REST_S = 3.0
 SLIDE_MARGIN = 0.002  # m between a pad and a load that slides down between the pads
 

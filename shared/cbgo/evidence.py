@@ -178,9 +178,9 @@ class Evidence:
         """Saves a later window of a stroke that triggered into that trigger's vector (max).
 
         The windows of one stroke share its start and judge the same stroke with more of it
-        seen, so each is a vector saved for the trigger. Saving only the window that crossed
-        E_t let an early, unsure window of the real swipe lose to a sure preparation or return
-        in g (SHREC'17 train split, held-out people: see services/episode/README.md).
+        seen, so each is a vector saved for the trigger: were only the window that crossed
+        E_t saved, an early, unsure window of a real swipe could lose to a sure preparation or
+        return in g.
         """
         for trigger in self.triggers:
             if (trigger.source == "dynamic" and trigger.side == side

@@ -24,6 +24,9 @@ BENCHES: dict[str, tuple[str, str]] = {
                 "episode end condition -> summary latency through real processes"),
     "intent": ("cbgo_tools.intent.bench",
                "paper's M1-M5 vs ours on D1-D5, learning curve"),
+    "intent-check": ("cbgo_tools.intent.evaluate",
+                     "an intent model on fresh D4 draws, repairable intents and the demo's "
+                     "decisions"),
     "sim": ("cbgo_tools.mujoco_sim.bench", "mujoco-sim: success and speed of every action"),
     "web": ("cbgo_tools.web.bench", "web's CPU share under 120 Hz hands, page rates"),
 }
@@ -41,7 +44,7 @@ TRAINERS: dict[str, tuple[str, str]] = {
 # Which service each benchmark and trainer measures or trains (`cbgo up --list` shows them).
 SERVICE_OF: dict[str, str] = {
     "bridge": "leap-bridge", "static": "static-gesture", "dynamic": "dynamic-gesture",
-    "episode": "episode", "intent": "intent", "sim": "mujoco-sim", "web": "web",
+    "episode": "episode", "intent": "intent", "intent-check": "intent", "sim": "mujoco-sim", "web": "web",
 }
 
 

@@ -1,10 +1,13 @@
-"""`python -m cbgo_tools.intent.evaluate --timing`: the cost of one inference."""
+"""`cbgo bench intent-check --timing`: the cost of one inference."""
+
+from argparse import Namespace
 
 from cbgo_tools.intent import evaluate
 
 
 def test_timing_prints_the_median_of_a_prediction_and_of_a_whole_inference(capsys):
-    assert evaluate.main(["--timing", "3", "--samples", "4"]) == 0
+    args = Namespace(model=None, n=10, repaired=0, seed=5000, samples=4, timing=3)
+    assert evaluate.run(args) == 0
     lines = capsys.readouterr().out.splitlines()
     assert "4 posterior samples" in lines[0] and "3 repeats" in lines[0]
     assert [line.split(":")[0].strip() for line in lines[1:]] == ["predict", "infer"]

@@ -2,9 +2,9 @@
 
 Examples::
 
-    python -m cbgo_tools.intent.evaluate                   # the shipped model
-    python -m cbgo_tools.intent.evaluate --model /tmp/old/ours --seed 6000
-    python -m cbgo_tools.intent.evaluate --timing 200     # the cost of one inference only
+    cbgo bench intent-check                   # the shipped model
+    cbgo bench intent-check --model /tmp/old/ours --seed 6000
+    cbgo bench intent-check --timing 200     # the cost of one inference only
 
 Prints, on observations drawn with seeds neither `cbgo train intent` (0, 1000, 2000) nor
 `cbgo bench intent` (below 3000) uses:
@@ -184,10 +184,8 @@ def shares(counts: Counter) -> str:
 # ==================================================================== command line
 
 
-def parse(argv: list[str] | None) -> argparse.Namespace:
-    """Reads the command line."""
-    parser = argparse.ArgumentParser(prog="python -m cbgo_tools.intent.evaluate",
-                                     description=__doc__.split("\n\n")[0])
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds the model, the sample sizes and ``--timing``."""
     parser.add_argument("--model", type=Path, default=None,
                         help="model path (<base>.pt + <base>.json) [the shipped model]")
     parser.add_argument("-n", type=int, default=10000,
@@ -200,12 +198,10 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
                         help="posterior samples per prediction (the service's default) [32]")
     parser.add_argument("--timing", type=int, default=0, metavar="N",
                         help="only time one inference on the demo's first scene, N repeats")
-    return parser.parse_args(argv)
 
 
-def main(argv: list[str] | None = None) -> int:
+def run(args: argparse.Namespace) -> int:
     """Prints the three evaluations; returns 1 if a demo decision is not as it should be."""
-    args = parse(argv)
     torch.set_num_threads(1)  # tiny networks: threads only cost
     model = OursModel.load(args.model or default_model_path())
     if args.timing > 0:
@@ -281,7 +277,3 @@ def report_timing(engine: IntentEngine, check: Check, repeats: int) -> None:
           f"{repeats} repeats:")
     for name, ms in time_inference(engine, check, repeats).items():
         print(f"  {name}: median {np.median(ms):.2f} ms, p90 {np.percentile(ms, 90):.2f} ms")
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,7 +1,7 @@
 """Benchmark the simulated robot: every feasible action on random scenes it was not tuned on.
 
-Scenes come from `workspace_scene`, a generator of its own (not `cbgo.world.random_scene`, on
-whose scenes the skills were developed), drawn inside the workspace of the contract
+Scenes come from `workspace_scene`, a generator of its own (not `cbgo.world.random_scene`,
+whose scenes the skills are tuned on), drawn inside the workspace of the contract
 (`cbgo.world.workspace_info`, what ``cbgo/sim/info`` answers): 0-2 drawers in any column whose
 opened tray and handle stay in reach, 0-2 boxes and 1-3 cups of every documented size,
 anywhere in their cell; towers up to the documented height, objects in open and closed
