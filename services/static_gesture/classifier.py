@@ -3,15 +3,14 @@
 Rules (the model files are written by ``cbgo.services.static_gesture.train``):
 
 - A model is a ``cbgo.bayes`` deep ensemble of mean-field Bayesian MLPs (`bayes.BayesEnsemble`,
-  ``members`` in the metadata; a file without it, written before ensembles, holds one
-  `bayes.BayesMLP`) saved as ``<base>.pt`` (state_dict) plus ``<base>.json`` (metadata). The
-  metadata names everything needed to use it — the gesture ``names`` (output order, possibly
-  with the no-gesture class ``none``), the ``inputs`` (which of the 57 features feed the
-  networks), the ``standardizer``, the ``feature_version`` — and pins the weights by their
-  SHA-256 (``weights_sha256``, over the tensors, not the file). Loading
-  checks all of it and refuses a model that does not fit (`ConfigError` naming the problem);
-  the pin also catches a ``.pt`` and a ``.json`` from two different trainings, e.g. read while a
-  trainer is replacing them.
+  ``members`` in the metadata; a file without it holds one `bayes.BayesMLP`) saved as ``<base>.pt``
+  (state_dict) plus ``<base>.json`` (metadata). The metadata names everything needed to use it — the
+  gesture ``names`` (output order, possibly with the no-gesture class ``none``), the ``inputs``
+  (which of the 57 features feed the networks), the ``standardizer``, the ``feature_version`` — and
+  pins the weights by their SHA-256 (``weights_sha256``, over the tensors, not the file). Loading
+  checks all of it and refuses a model that does not fit (`ConfigError` naming the problem); the pin
+  also catches a ``.pt`` and a ``.json`` from two different trainings, e.g. read while a trainer is
+  replacing them.
 - The model id is ``static-bnn-<first 8 hex of weights_sha256>``: the same weights give the same
   id on every machine.
 - Features: ``cbgo.hands.features.hands_features(hands, to_recorded_side=True)``, so a right
@@ -24,8 +23,8 @@ Rules (the model files are written by ``cbgo.services.static_gesture.train``):
   with each yaw difference as its sine and cosine (60, ``invariant.continuous``),
   ``"invariant-4"`` their proximal bones and distances with the joints' angles in 3-D (49,
   ``invariant.bends``), and
-  ``inputs`` index those; absent or null, ``inputs`` index the 57 themselves (models trained
-  before it).
+  ``inputs`` index those; absent or null, ``inputs`` index the 57 themselves (the trainer's
+  ``raw`` feature set).
 - Posterior averaging: at load, ``samples`` weight sets in all, shared out evenly among the
   members, are drawn from each member's variational posterior q(w) (seeded by the weights'
   hash, so the same model gives the same draws) and kept as stacked numpy arrays; a member's
@@ -360,7 +359,7 @@ class StaticClassifier:
 def build_network(meta: dict) -> bayes.BayesEnsemble | bayes.BayesMLP:
     """Returns the untrained network a model's metadata describes (for `bayes.load_module`)."""
     arch = bayes.Architecture(**meta["architecture"])
-    if "members" not in meta:  # written before ensembles: one network
+    if "members" not in meta:  # a model of one network
         return bayes.BayesMLP(arch)
     return bayes.BayesEnsemble(arch, int(meta["members"]))
 

@@ -4,7 +4,7 @@ Why: the 57 features (``cbgo.hands.features``) read parts of the skeleton that e
 lays out its own way — the wrist, the metacarpal bases, and the thumb's zero-length metacarpal
 (older Leap SDKs give it an orientation, LeapC an identity basis, datasets like the multi-modal
 Leap HGR set give no metacarpal at all). A classifier that leans on them learns one device. The
-derived features keep only what every Leap-style tracker reports the same way:
+derived features (`derive`) keep only what every Leap-style tracker reports the same way:
 
 - per finger (thumb..pinky), the PROXIMAL bone relative to the hand direction: the metacarpal
   feature plus the proximal feature of the 57, which telescopes to
@@ -17,6 +17,12 @@ derived features keep only what every Leap-style tracker reports the same way:
 Every yaw difference is wrapped into (−π, π] first (the 57 keep ±2π jumps by definition), so a
 hand pointing straight away from the user (yaw ≈ ±π) gives one value, not two. The wrist
 features and the metacarpals of index..pinky are left out. 5·3·2 angles + 15 distances = 45.
+
+The feature sets a model can read (`TRANSFORMS`, named in its metadata): ``invariant-1``
+(`derive`, 45); ``invariant-2`` (`derive_palm`: the proximal bones against the palm's axis,
+45); ``invariant-3`` (`continuous`: those with each yaw difference as its sine and cosine, 60);
+``invariant-4``, the trainer's default (the proximal bones and distances of ``invariant-3`` with
+the 19 angles between bones of `bends`, 49). docs/design/static_gesture.md says why.
 
 `augment` adds the variation devices and people bring, on the 57 (so it works on rows that
 only exist as features, like the paper's recordings): hand size (every distance scaled

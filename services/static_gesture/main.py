@@ -1,13 +1,14 @@
 """static-gesture: per frame and hand, the probability of every static gesture.
 
-Behaviour (the contract is services/static_gesture/README.md):
+Behaviour (the contract is services/static_gesture/README.md; the design, with its reasons,
+docs/design/static_gesture.md):
 - for every hand of every ``cbgo/hands/frame``, the 57 features (right hands mirrored into the
-  recordings' left-hand space) go through the Bayesian MLP (`classifier`); all hands of a frame
-  are one batch. One ``cbgo/gestures/static`` per hand: ``ts`` and ``seq`` are the frame's (the
-  moment the pose was seen, so consumers line gestures up with frames), ``hand_id`` and
-  ``side`` the hand's, ``names``/``probs`` the model's full vector (with ``none``, the no-gesture
-  class, when the model has it), ``model`` its id. There is no threshold: an uncertain hand
-  gets its honest, flat vector. A frame with no hand gives no message;
+  recordings' left-hand space) go through the model, a deep ensemble of Bayesian MLPs
+  (`classifier`); all hands of a frame are one batch. One ``cbgo/gestures/static`` per hand: ``ts``
+  and ``seq`` are the frame's (the moment the pose was seen, so consumers line gestures up with
+  frames), ``hand_id`` and ``side`` the hand's, ``names``/``probs`` the model's full vector (with
+  ``none``, the no-gesture class, when the model has it), ``model`` its id. There is no threshold:
+  an uncertain hand gets its honest, flat vector. A frame with no hand gives no message;
 - a hand whose fingers are moving is a pose forming, not held: each hand is followed by its
   side and id, and when its fingers moved more than ``--still-deg`` in the last 0.15 s (since
   its first frame, while it is younger) and its answer changed by ``--changed-tv`` its

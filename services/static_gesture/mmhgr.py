@@ -35,7 +35,7 @@ Rules:
 Examples::
 
     cbgo data fetch mmhgr             # a copy of the source folder, into the cache
-    cbgo data convert mmhgr           # → the cache file the trainer reads
+    cbgo data convert mmhgr SRC       # SRC (that copy) → the cache file the trainer reads
     cbgo data convert mmhgr --info    # what the cache file holds
 """
 
@@ -59,9 +59,10 @@ their pinch as "grip between finger and thumb, while last three fingers are open
 and their recorded pinches are one (thumb and index tips 18 ± 13 mm apart, the other three
 fingers straight; the set's ok signs 29 ± 20 mm)."""
 OK_SIGNS = ("pinch", "none")
-"""What the set's ok signs can be trained as (`pose_map`): the paper's ``pinch`` (the default,
-above), or ``none``, an unknown pose, as issue 15 reads an ok sign. The README's section "The
-ok sign is `pinch`" measures both."""
+"""What the set's ok signs can be trained as (`pose_map`, ``cbgo train static --ok-sign``): the
+paper's ``pinch`` (the default, above), or ``none``, an unknown pose. What each does to the ok
+signs of unseen people and of the Leap Motion Controller 2: docs/design/static_gesture.md, "The
+ok sign is `pinch`"."""
 POSE_FINGERS = {"fist_moved": (0, 0, 0, 0), "up": (0, 0, 0, 0), "index": (1, 0, 0, 0),
                 "two": (1, 1, 0, 0), "three": (1, 1, 1, 0), "four": (1, 1, 1, 1),
                 "five": (1, 1, 1, 1), "ok": (0, 1, 1, 1)}

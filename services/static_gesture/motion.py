@@ -2,8 +2,8 @@
 
 Why: a static gesture is a held pose. A hand on its way from one gesture to another passes
 through shapes that a frame-by-frame classifier reads as gestures with confidence (a
-half-raised ring finger is a two or a three), and issue 15 wants transitions answered
-``none``. What tells them apart is time: the fingers of a held pose stay put, those of a
+half-raised ring finger is a two or a three), and a transition should be answered ``none``.
+What tells them apart is time: the fingers of a held pose stay put, those of a
 changing one move, and the reading of a changing hand changes with them. So the service
 follows each hand by its side and tracking id and compares it with the hand's latest frame at
 least `WINDOW_S` older (or its first, below), two ways:
@@ -20,13 +20,14 @@ fade into ``none`` in proportion (`openset.fade_into_none`, the open-set rule's 
 beyond, the hand is ``none``.
 
 The lines are chosen on the HGR set's held poses (development data) and hands made moving
-between two of a person's gestures (`crossval.timed_transitions`); the static-gesture README's
-"Fingers that move" gives the figures. A hand seen for less than `WINDOW_S` is compared with
-its first frame: a hand often comes into view while it forms its pose, and those first frames
-are a pose forming too (`crossval.appearing_transitions` measures them). A held pose's
-fingers move about as much over a shorter gap as over the window (tracker noise, not drift:
-`WINDOW_S`), so what the rule costs held poses stays what the README measures. Its very first
-frame has nothing to compare with and keeps its answer. A hand not seen for `FORGET_S`
+between two of a person's gestures (`crossval.timed_transitions`); ``cbgo bench static --folds
+25 --no-latency`` measures what they cost held poses and take out of changing ones
+(docs/design/static_gesture.md, "Hands that change pose"). A hand seen for less than
+`WINDOW_S` is compared with its first frame: a hand often comes into view while it forms its
+pose, and those first frames are a pose forming too (`crossval.appearing_transitions` measures
+them). A held pose's fingers move about as much over a shorter gap as over the window (tracker
+noise, not drift: `WINDOW_S`), so the rule costs held poses no more there. Its very first frame
+has nothing to compare with and keeps its answer. A hand not seen for `FORGET_S`
 is forgotten; frame times that go backwards (a replay restarted) start the hand afresh.
 """
 
@@ -40,22 +41,24 @@ from cbgo.services.static_gesture import invariant
 
 WINDOW_S = 0.15
 """How far back a hand's fingers are compared, seconds of frame time: longer than a tracker's
-flicker, shorter than a change of pose (0.25–0.6 s). The HGR set's held poses move about as
-much between kept frames 5 tracker frames apart as 40 apart (a scratch count: the 95th
-percentile 5–12° at every gap), noise rather than drift, so the cost measured on its gaps of
-about 0.1–0.2 s holds for this window; 0.15 s catches more of a change than 0.1 s (README)."""
+flicker, shorter than a change of pose (0.25–0.6 s), and longer than 0.1 s, which catches less
+of a change. The HGR set's held poses move about as much between kept frames a few tracker
+frames apart as many apart, noise rather than drift, so the cost measured on its gaps of about
+0.1–0.2 s holds for this window (``cbgo bench static --folds 25 --no-latency`` prints it)."""
 FORGET_S = 1.0
 """A hand not seen for this long (frame time) is forgotten."""
 MAX_FRAMES_KEPT = 256
 """Frames kept per hand at most: a source whose time stands still cannot grow the memory."""
 STILL_DEG = 5.0
+"""Finger motion (degrees, `invariant.finger_change`) up to which a hand keeps its answer."""
 MOVING_DEG = 10.0
+"""Finger motion (degrees) from which a hand whose answer changed is wholly ``none``."""
 CHANGED_TV = 0.3
 """How much of a hand's answer must have changed (`answer_change`) for its finger motion to
-count. Held poses' answers barely change between kept frames (HGR set: median 0.001, 99th
-percentile 0.38), those of changing hands do (median 0.28). Chosen on the HGR set's held-out
-people (development data): the line that rejects the most changing hands while no gesture
-loses more than 2 % of its held frames answered right (README, "Fingers that move")."""
+count: a held pose's flicker rarely changes what it reads as, a changing hand's answer does.
+Chosen on the HGR set's held-out people (development data): the lowest line at which no gesture
+loses more than 2 % of its held frames answered right (``cbgo bench static --folds 25
+--no-latency`` prints each line's cost and the gesture that loses most)."""
 
 
 def answer_change(before: np.ndarray, after: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Train the static-gesture Bayesian MLP and write it where the service loads it.
+"""Train the static-gesture ensemble of Bayesian MLPs and write it where the service loads it.
 
 Training data (every row is the paper's 57 features, right hands mirrored into the recordings'
 left-hand space):
@@ -23,7 +23,7 @@ left-hand space):
   frame, each turned by N(0, 20°) about its palm (``--rotate-deg``; 20° rather than 10°: chosen
   on the person-grouped cross-validation, never on ``../shared/eval``); ``--rotate-shape-deg``
   turns the poses told by shape alone wider (a model for hands held at many angles, at a
-  cost on hands held as usual: the figures are in the README);
+  cost on hands held as usual: docs/design/static_gesture.md);
 - the user's own gestures recorded by demonstration (``cbgo gestures record NAME --static``),
   stored in ``data_dir()/gestures/static/NAME.npz``: a new name becomes a new class (after the 8
   and before ``none``), a known name adds examples to that class. Few frames of one take are
@@ -33,31 +33,26 @@ left-hand space):
 The recorded rows (the paper's and the HGR set's) also come once more with device- and
 person-style variation (``invariant.augment``: hand size 0.85–1.15, 0.05 rad per bone angle,
 palm-centre placement ±6 mm; ``--curl-deg`` also bends their open fingers by up to that many
-degrees, 0 by default: the README gives its figures). Classes are weighted to equal total
-weight in the likelihood.
+degrees, 0 by default). Classes are weighted to equal total weight in the likelihood.
 
-Inputs (``--features``): by default ``invariant-4`` (since stop 32: with the HGR set's ok signs
-trained as pinch, it rejects more held-out unknown poses than ``invariant-3`` and reads turned
-hands better, 0.1 point behind on all frames of unseen people; README), the proximal bones and
-distances below with the other bones read as angles in 3-D (``invariant.bends``, 49 inputs).
-``invariant-3``: the 45 device-independent features derived from the 57 with every proximal bone
-against the palm's axis (``invariant.derive_palm``: no thumb-metacarpal convention and no wrist is
-read, and the hand's pitch drops out, which the paper's recordings tie to the gesture) with each of
-their 15 yaw differences as its sine and cosine (``invariant.continuous``: 60 inputs), standardised
-with the training mean/std. ``invariant-2`` keeps the yaw differences wrapped into (−π, π], where a
-curled finger's lands near either end; leave-one-person-out on the HGR set it scored 91.69 %
-balanced against 91.96 % and rejected 62.4 % of the held-out unknown poses against 65.9 %
-(services/static_gesture/README.md). ``invariant-1`` (proximal bones against
-the hand direction) is the default before; on the HGR set's five folds of people (``cbgo bench
-static --folds 5`` of a model trained with each) it scored 92.2 % balanced against 92.4 %, rejected
-58 % of the held-out unknown poses against 62 %, and 91.3 % against 91.9 % with the test hands
-pitched 30° down. ``raw`` is the first choice, the 57 minus the thumb-metacarpal ones (2..5,
-``UNTRUSTED_FEATURES``). The network is the paper's shape, one tanh hidden layer (``--hidden``, 32
+Inputs (``--features``), standardised with the training mean/std: by default ``invariant-4``,
+the proximal bones and distances of ``invariant-3`` with the other bones read as angles in 3-D
+(``invariant.bends``: the same however the hand is held; 49 inputs). ``invariant-3``: the 45
+device-independent features derived from the 57 with every proximal bone against the palm's
+axis (``invariant.derive_palm``: no thumb-metacarpal convention and no wrist is read, and the
+hand's pitch drops out, which the paper's recordings tie to the gesture) with each of their 15
+yaw differences as its sine and cosine (``invariant.continuous``: 60 inputs). ``invariant-2``
+keeps the yaw differences wrapped into (−π, π], where a curled finger's lands near either end;
+``invariant-1`` measures the proximal bones against the hand direction; ``raw`` is the 57 minus
+the thumb-metacarpal ones (2..5, ``UNTRUSTED_FEATURES``). docs/design/static_gesture.md says
+why the default. The model is an ensemble of ``--members`` networks (3 by default), each
+trained from its own seed on its own draw of the simulated hands, augmentations and HGR frames
+(`build_datasets`). Each network is the paper's shape, one tanh hidden layer (``--hidden``, 32
 by default), with biases, Normal(0, 1) priors on every weight, trained by maximising the ELBO
 (``cbgo.bayes``: closed-form KL, local reparameterisation, Adam; batches of 256 at lr 0.01). 60
 epochs: on a fold of five held-out people of the HGR set they scored within a few tenths of a
 percent of 150 epochs in 40 % of the time, which is what makes the person-grouped cross-validation
-of ``cbgo bench static`` affordable. Model choices were made on TRAINING data only (``--validate``:
+of ``cbgo bench static`` affordable. Model choices are made on TRAINING data only (``--validate``:
 a grouped fifth of the paper's recordings and unseen simulated people; the cross-validation on
 held-out people) — never on ``../shared/eval``.
 
@@ -527,8 +522,8 @@ def build_datasets(options: TrainOptions, *args, **kwargs) -> list[Dataset]:
 
     The members see the same recordings but their own simulated hands, augmentations and HGR
     frame choices: that, with their own initialisation, is what makes them disagree where the
-    data do not decide (5 folds of people, scratch: 3 members on one data set gained half
-    as much as on their own).
+    data do not decide (on the person-grouped cross-validation, three members differing by
+    seed alone gained less than three on their own draws of the data).
     """
     return [build_dataset(replace(options, seed=member_seed(options.seed, i)), *args, **kwargs)
             for i in range(options.members)]
@@ -787,7 +782,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="networks in the ensemble, each trained on its own draw of the "
                              "data: 3 read unseen people about 1 point better than one and "
                              "reject 3 points more unknown poses, at 3 times the training time "
-                             f"(services/static_gesture/README.md) [{d.members}]")
+                             f"(docs/design/static_gesture.md) [{d.members}]")
     parser.add_argument("--off-vocabulary", type=int, default=d.off_vocabulary,
                         help=f"simulated poses outside the vocabulary, as none "
                              f"[{d.off_vocabulary}]")
@@ -804,26 +799,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rotate-shape-deg", type=float, default=d.rotate_shape_deg,
                         help="turn the HGR poses told by shape alone (all but the palm-up and "
                              "palm-down thumb poses) by N(0, this) instead: a model for hands "
-                             "held at many angles (head-mounted sensors): 45 read fingers-up "
-                             "and rolled hands 9-39 points better and hands held as usual "
-                             "0.7 points worse (services/static_gesture/README.md) "
-                             "[as --rotate-deg]")
+                             "held at many angles (head-mounted sensors), at a cost on hands "
+                             "held as usual (docs/design/static_gesture.md) [as --rotate-deg]")
     parser.add_argument("--curl-deg", type=float, default=d.curl_deg,
                         help="bend the recorded rows' open fingers by up to this many degrees "
                              "in their device- and person-style copies (devices and people "
                              f"curl open fingers differently) [{d.curl_deg:g}]")
     parser.add_argument("--spliced-none", type=int, default=d.spliced_none,
                         help="train this many `none` hands spliced from HGR people's own fist "
-                             "and open hand (the finger patterns no gesture uses): horns 60 → "
-                             "91 %% rejected, but C, L and thumb down less often "
-                             f"(services/static_gesture/README.md) [{d.spliced_none}]")
+                             "and open hand (the finger patterns no gesture uses): horns and "
+                             "hang loose rejected more often, but C, L and thumb down less often "
+                             f"(docs/design/static_gesture.md) [{d.spliced_none}]")
     parser.add_argument("--ok-sign", choices=mmhgr.OK_SIGNS, default=d.ok_sign,
                         help="what the HGR set's ok signs are trained as: pinch (the paper's "
                              "recorded pinches are ok signs) or none (an unknown pose). The "
                              "paper's pinches stay pinch either way, and the Leap Motion "
                              "Controller 2's ok sign (Ultraleap's Gemini pose) still reads "
-                             "pinch as held, 0.59 with none (README: \"The ok sign trained as "
-                             f"`none` instead\") [{d.ok_sign}]")
+                             "pinch as held, 0.59 with none (docs/design/static_gesture.md: "
+                             f"\"The ok sign is `pinch`\") [{d.ok_sign}]")
     parser.add_argument("--no-user-gestures", action="store_true",
                         help="leave out the gestures recorded by demonstration")
     parser.add_argument("--validate", action="store_true",

@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cbgo.cli.common import offline_registry, run_module
+from cbgo.cli.common import fail, offline_registry, run_module
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,10 +29,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("args", nargs=argparse.REMAINDER, help="the benchmark's own options")
 
 
+def split_write(argv: list[str]) -> tuple[str | None, list[str]]:
+    """Takes ``--write FILE`` (or ``--write=FILE``) out of the benchmark's own options.
+
+    Options after the benchmark's name are the benchmark's, so ``--write`` there would reach
+    it; it is cbgo bench's wherever it stands.
+    """
+    rest, write = [], None
+    items = iter(argv)
+    for item in items:
+        if item == "--write":
+            write = next(items, None)
+            if write is None:
+                fail("--write needs a file name", 2)
+        elif item.startswith("--write="):
+            write = item.partition("=")[2]
+        else:
+            rest.append(item)
+    return write, rest
+
+
 def run(args: argparse.Namespace) -> int:
     """Imports the chosen benchmark, parses its options and runs it."""
     module = offline_registry().BENCHES[args.bench][0]
     prog = f"cbgo bench {args.bench}"
+    write, own = split_write(args.args)
+    args.write, args.args = args.write or write, own
     if args.write is None:
         return run_module(module, prog, args.args)
     from cbgo_tools.results import written  # noqa: PLC0415 - only with --write

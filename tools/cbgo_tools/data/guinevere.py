@@ -2,14 +2,15 @@
 
 Why: beside the paper's recordings (older Leap SDK), the HGR set (Leap SDK v2) and Ultraleap's
 single Gemini frames, this is one more real sensor and person the model never saw, with a
-relaxed hand among the poses: the "relaxed half-open hand" issue 15 wants answered `none`.
+relaxed hand among the poses: a relaxed, half-open hand that should be answered `none`.
 
 The set: ``guinevre-static2`` in the GitHub repository ``sluyters/QuantumLeap`` (folder
 ``backend/src/datasets/static/guinevre-static2``; UCLouvain), one person's right hand held
 still over a Leap Motion Controller, LeapJS frames at about 55 Hz (``grabAngle`` and
 ``pinchDistance`` fields: SDK v3/v4 tracking), a folder per pose with files ``POSE-TAKE.json``.
-It has no licence file: nothing of it is in this repository; copy the folder into a cache and
-convert it here. It is **evaluation only**: nothing is fitted, tuned or selected on it.
+It has no licence file: nothing of it is in this repository; ``cbgo data fetch
+guinevere-static`` copies the folder into the cache and ``cbgo data convert guinevere-static``
+converts it here. It is **evaluation only**: nothing is fitted, tuned or selected on it.
 
 Which poses are scored, as what (`POSES`), and why the others are not:
 
@@ -30,12 +31,12 @@ written as MCAP recordings of ``hands/frame`` (`cbgo.recording`), one per take, 
 (`cached_takes`), as ``--takes`` scores a user's own takes (`takes`). A take missing from
 a copy is not scored; one that cannot be read is skipped with a line saying why.
 
-Example::
+Examples::
 
-    git clone --depth 1 https://github.com/sluyters/QuantumLeap
-    python -m cbgo_tools.data.guinevere convert \
-        QuantumLeap/backend/src/datasets/static/guinevre-static2
-    # prints the cbgo bench static --takes ... line that scores what it wrote
+    cbgo data fetch guinevere-static     # the guinevre-static2 folder, into the cache
+    cbgo data convert guinevere-static   # → takes in the cache; prints the line that scores them
+    cbgo data convert guinevere-static SRC DST   # another copy of the folder, other takes folder
+    cbgo bench static --no-crossval --no-latency # scores the cached takes among its figures
 """
 
 from __future__ import annotations

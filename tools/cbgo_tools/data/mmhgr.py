@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cbgo.config import cache_dir
 from cbgo.services.static_gesture.mmhgr import (
     AMBIGUOUS,
     POSE_MAP,
@@ -136,8 +137,9 @@ def _info(frames: Frames) -> None:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the source folder, the output file and ``--info``."""
-    parser.add_argument("src", type=Path, nargs="?", default=None,
-                        help="the multi_mod_hand_gest_recog folder [the fetched copy]")
+    parser.add_argument("src", type=Path, nargs="?", default=cache_dir() / "mmhgr",
+                        help="the multi_mod_hand_gest_recog folder [the fetched copy: "
+                             "cbgo data fetch mmhgr]")
     parser.add_argument("--out", type=Path, default=None, help=f"[{default_cache()}]")
     parser.add_argument("--info", action="store_true",
                         help="print what the cache file (or --out) holds; convert nothing")
@@ -154,10 +156,6 @@ def run(args: argparse.Namespace) -> int:
             return 1
         _info(frames)
         return 0
-    if args.src is None:
-        print("give the source folder (SRC), or fetch it first: `cbgo data fetch mmhgr`",
-              file=sys.stderr)
-        return 2
     try:
         n = convert(args.src, out)
     except (OSError, ValueError) as exc:  # no copy there, or an unreadable frame

@@ -1,7 +1,7 @@
 """Ultraleap's own recorded hand poses (Gemini tracking): reader and a bench on the live model.
 
-Why: issue 15 asks for static gestures that hold on the Leap Motion Controller 2 (Ultraleap
-Gemini / LeapC tracking). No public LMC2 recording set exists that we know of, but Ultraleap's
+Why: static gestures should hold on the Leap Motion Controller 2 (Ultraleap Gemini / LeapC
+tracking). No public LMC2 recording set exists that we know of, but Ultraleap's
 Unity plugin (``ultraleap/UnityPlugin``, Apache-2.0) ships the hand poses of its pose detector
 as serialized Gemini hands: one frame per pose, one person, both sides (the left hand is the
 right one mirrored). They are the only Gemini-generation skeletons we have: the thumb's
@@ -35,7 +35,8 @@ Rules:
 
 Example::
 
-    python -m cbgo_tools.data.ultraleap        # the shipped model on the poses
+    cbgo bench static --no-crossval --no-latency   # the poses' answers among its figures
+    cbgo bench static --model M --no-crossval --no-latency   # another model's
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Benchmark the static-gesture classifier and service: accuracy, calibration, speed, latency.
 
-Figures (goals from issue 4 in brackets):
+Figures (the goals in brackets; `GOALS`, printed as PASS/MISS lines at the end):
 
 1. **Real test split** (``--eval``, default ``../shared/eval/leap_static_features_test.npz``
    searched relative to the repository root and to the working directory; evaluation ONLY —
@@ -12,8 +12,9 @@ Figures (goals from issue 4 in brackets):
    from Ultraleap's Unity plugin, the only LMC2-generation skeletons we have): each pose's
    answer as held (fingers up, palm to the user) and turned like the training hands.
 1c. **Guinevere's static poses** (``guinevere``: another Leap Motion and person, evaluation only;
-   when ``python -m cbgo_tools.data.guinevere convert SRC`` has written them to
-   its cache): point, thumbs-up and a relaxed hand (an unknown pose), per take.
+   when ``cbgo data fetch guinevere-static`` and ``cbgo data convert guinevere-static`` have
+   written them to the cache): point, thumbs-up and a relaxed hand (an unknown pose), per take,
+   as the service answers.
 1d. **Your own recorded takes** (``--takes LABEL=FILE.mcap ...``, then nothing else is
    measured): recordings made with ``cbgo record ... hands/frame`` while one pose was held,
    scored per take through the model (``takes``): the frames answered with the take's gesture,
@@ -30,15 +31,17 @@ Figures (goals from issue 4 in brackets):
    process, with the load average: on a shared machine the wall clock includes waiting for a
    core.
 4. **Real frames of people never seen** (the multi-modal Leap HGR set, when its cache file
-   exists: ``python -m cbgo.services.static_gesture.mmhgr convert SRC``; ``--mmhgr PATH``):
+   exists: ``cbgo data fetch mmhgr``, then ``cbgo data convert mmhgr SRC``; ``--mmhgr PATH``):
    the model's own training recipe (its metadata's options) cross-validated by person
    (``--folds``; 25 = leave-one-person-out): per-class recall and balanced accuracy [≥ 97 %],
    per person, confusion; rejection of unknown poses held out of training — answered ``none``
    or with top probability < 0.5 [≥ 90 %]; accuracy by tracking confidence, and on the
    frames whose tracker's own finger flags show their pose apart from the others, and with the
    held-out hands turned about the palm (pitched, fingers up, rolled, palm up)
-   (``cbgo_tools.static_gesture.crossval``). ``--no-crossval`` skips it (it trains one model
-   per fold: minutes).
+   (``cbgo_tools.static_gesture.crossval``); hands midway between two gestures, hands
+   changing pose over time and what the service's rule on them does, and the flat open hands.
+   ``--no-crossval`` skips it (it trains one ensemble per fold: 25 folds took 18-24 min on the
+   2-core development machine).
 5. **Latency** through Zenoh: a router, leap-bridge (``static-all`` looping at ``--rate-hz``)
    and static-gesture as real processes; frame ``ts`` (stamped by leap-bridge just before it
    publishes, carried into ``gestures/static``) to the arrival of the gesture message at the
@@ -52,6 +55,8 @@ Examples::
     cbgo bench static --model /tmp/m --seconds 5 --json /tmp/static.json
     cbgo bench static --no-latency
     cbgo bench static --folds 25 --no-latency   # leave-one-person-out on the real frames
+    cbgo bench --write docs/results/static_gesture.md static --folds 25 \
+        --plot docs/results/static_gesture   # the results document and its picture
 """
 
 from __future__ import annotations
@@ -125,7 +130,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="only score recorded takes (`cbgo record ... hands/frame` while "
                              "one pose is held; a label the model does not know, or none, is "
                              "an unknown pose that should be rejected): your sensor, your "
-                             "people (services/static_gesture/takes.py)")
+                             "people (cbgo_tools.static_gesture.takes)")
 
 
 def find_eval(explicit: Path | None) -> Path | None:
@@ -368,8 +373,8 @@ def _print(fig: dict) -> None:
         _print_ok_shapes(fig["ok_shapes"])
         print()
     if fig.get("guinevere") is None:
-        print(f"Guinevere's static takes: not in {guinevere.DEFAULT_DST} (python -m "
-              "cbgo_tools.data.guinevere convert SRC); skipped\n")
+        print(f"Guinevere's static takes: not in {guinevere.DEFAULT_DST} (cbgo data fetch "
+              "guinevere-static, then cbgo data convert guinevere-static); skipped\n")
     else:
         takes.print_figures(fig["guinevere"], m["model"], "Guinevere's static takes")
         print()
@@ -393,8 +398,8 @@ def _print(fig: dict) -> None:
     cv = fig.get("crossval")
     if cv is None:
         print("real frames of unseen people: no multi-modal Leap HGR cache "
-              f"({mmhgr.default_cache()}; see cbgo.services.static_gesture.mmhgr) or "
-              "--no-crossval; skipped")
+              f"({mmhgr.default_cache()}: cbgo data fetch mmhgr, then cbgo data convert mmhgr "
+              "SRC) or --no-crossval; skipped")
     else:
         crossval.print_figures(cv)
     lat = fig.get("latency")
@@ -460,9 +465,9 @@ def recipe_of(clf: StaticClassifier) -> train.TrainOptions:
     """Returns the training options a model was made with (defaults for what it lacks)."""
     known = train.TrainOptions.__dataclass_fields__
     saved = {k: v for k, v in (clf.metadata.get("options") or {}).items() if k in known}
-    if "features" not in saved:  # a model from before the device-independent features
+    if "features" not in saved:  # a model that saved no feature set reads the raw 57
         saved.update(features="raw", mmhgr=False, off_vocabulary=0)
-    saved.setdefault("members", clf.posterior.members)  # one network, from before ensembles
+    saved.setdefault("members", clf.posterior.members)  # a model that saved no members
     return train.TrainOptions(**saved)
 
 
@@ -490,9 +495,10 @@ def thumb_levels(frames: mmhgr.Frames | None) -> dict:
 def ok_shapes(frames: mmhgr.Frames | None) -> dict:
     """The shape of the paper's pinches beside the ok signs we have: medians per group.
 
-    Why: issue 15 calls an ok sign an unknown pose, and the paper's pinch is one (the README's
-    "The ok sign is `pinch`"). What tells the groups apart, if anything: the bend of the
-    thumb's last joint (`invariant.bends`) and the gap between thumb and index tips.
+    Why: an ok sign may be wanted as an unknown pose, and the paper's pinch is one
+    (docs/design/static_gesture.md, "The ok sign is `pinch`"). What tells the groups apart, if
+    anything: the bend of the thumb's last joint (`invariant.bends`) and the gap between thumb
+    and index tips.
     """
     x, y, names = load_real_features()
     gemini = ultraleap.load_poses()["ok"][0]  # the right hand; the left is its mirror image

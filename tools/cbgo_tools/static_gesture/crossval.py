@@ -68,8 +68,8 @@ FINGER_GATES = ((motion.STILL_DEG, motion.MOVING_DEG, motion.CHANGED_TV),
 """Lines of the service's finger-motion rule (`motion`; the first is its default): a hand
 whose answer changed by at least the third figure (total variation; 0: any) and whose fingers
 moved more than the first (°) has its gestures faded into ``none`` in proportion, wholly from
-the second. The last is the rule on finger motion alone (stop 39's default). What each costs
-the held poses is printed."""
+the second. The last is the rule on finger motion alone (``--still-deg 10 --moving-deg 20
+--changed-tv 0``). What each costs the held poses is printed."""
 TIMED_PER_PERSON = 40
 """Transitions played over time per held-out person (`timed_transitions`)."""
 TRANSITION_S = (0.25, 0.6)
@@ -98,7 +98,7 @@ def transitions(frames: mmhgr.Frames, firsts: np.ndarray, seconds: np.ndarray,
     """Returns hands part-way between two gestures of one person: (N, 57) and their pairs.
 
     Why: a hand changing from one gesture to another passes through shapes that are neither,
-    and issue 15 asks for those to be answered ``none``. The HGR set records no transitions,
+    and those should be answered ``none``. The HGR set records no transitions,
     so each is made from two real frames of one person showing different gestures
     (`transition_ends`): every angle of the 57 (yaw differences wrapped) and every distance
     taken ``alpha`` of the way from the first to the second, each joint turning at once, as a
@@ -580,9 +580,9 @@ def _appearing_figures(parts: list[dict]) -> dict | None:
     """What the hands found mid-change are answered while young (`appearing_transitions`).
 
     Returns:
-        ``{n, alone, with_first}``: `_timed_split` of their answers read alone (the service
-        before young hands were compared with their first frame) and with the default rule
-        against their first frame. None when the parts carry none.
+        ``{n, alone, with_first}``: `_timed_split` of their answers read alone (as if a young
+        hand had nothing to compare with) and with the default rule against their first
+        frame. None when the parts carry none.
     """
     if "appearing" not in parts[0]:
         return None

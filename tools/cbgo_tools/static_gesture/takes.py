@@ -3,7 +3,7 @@
 Why: the figures of `cbgo bench static` come from the paper's recordings, the HGR set and
 simulated hands. A user with another sensor (a Leap Motion Controller 2, Gemini tracking) or
 other people measures what the model does for them by recording a few takes and scoring them
-here, the way issue 15's acceptance is measured: per take, the share of frames answered right.
+here, the way an acceptance test measures it: per take, the share of frames answered right.
 
 Rules:
 
@@ -20,9 +20,9 @@ Rules:
 - Messages that break the ``hands/frame`` contract are counted and skipped, never scored.
 - How still the tracker holds the pose: per hand, how far its fingers moved in the last
   `motion.WINDOW_S` (since its first frame while it is younger), as the service measures it,
-  reported as percentiles. The rule on hands
-  that change pose (README: "Fingers that move") fades a held pose only where this crosses its
-  line while the answer changes; how many hands it rejected, and the take read frame by frame
+  reported as percentiles. The rule on hands that change pose (docs/design/static_gesture.md,
+  "Hands that change pose") fades a held pose only where this crosses its line while the
+  answer changes; how many hands it rejected, and the take read frame by frame
   without it, are printed beside.
 
 Example::
