@@ -9,8 +9,8 @@
   observation settings they were learned with, and a summary of the training run. Each
   default template names its mirror image (``mirror``: swipe_left's is
   swipe_right): they are learned in the right hand's space, and a left hand's strokes are
-  matched mirrored (`classifier.mirror_rows`). A library without the field (before 2026-12)
-  matches every stroke as performed.
+  matched mirrored (`classifier.mirror_rows`). A library without the field matches every
+  stroke as performed.
 - A user's gesture is one file ``<data_dir>/gestures/dynamic/<NAME>.json`` (`cbgo.config.data_dir`,
   ``CBGO_DATA_DIR``), written by ``cbgo gestures record NAME --dynamic``. It holds one template.
   A user template with the name of a default one replaces it (a personal version).

@@ -63,36 +63,34 @@ from cbgo.errors import ConfigError
 
 EXIT_SHARE = 0.7  # a lost stroke going this much towards the person is the hand leaving
 REVERSE_MIN_MM = 20.0  # both moves must go this far in space for a spatial reversal to count
-# A window's palm speed for the slow-move line: the one a tenth of its samples exceed. Its
-# top speed let a slow move with a tremor through (a 1.3 s move to a swipe's start, top
-# speed 205 mm/s, read as a sure swipe), while 99 % of the SHREC'17 train split's swipes
-# have a tenth of their samples above 260 mm/s (services/dynamic_gesture/README.md).
+# A window's palm speed for the slow-move lines: the speed a tenth of its samples exceed, not its
+# top speed, which one tremor-lifted sample of a slow move (a re-positioning, the move to a
+# swipe's start) can push past the line, while a real swipe is brisk over more of its samples
+# (`cbgo bench dynamic --realism DIR` prints real and simulated peak speeds by swipe length).
 FAST_PERCENTILE = 90.0
 ONSET_S = 0.3  # how far back a stroke's start may be placed into the slow motion before it
 GESTURE_P = 0.5  # a reported window whose top gesture is this probable is a gesture
 # A final window whose top gesture is this probable might have been one: the reverse move after
 # it is its return. Real swipes are often unsure (p 0.3-0.5, "none" a little ahead) while their
-# return, which is never trained as "none", comes out surer and would win (see the README's
-# leave-people-out figures).
+# return, which is never trained as "none", comes out surer and would win. The held-out real
+# people's trials and streams measure it: `cbgo train dynamic --real DIR --folds 4`.
 MIGHT_P = 0.25
 # A running stroke's window is reported only when its top gesture is this probable: an early
-# answer must be a sure one. On the SHREC'17 train split's held-out people, weaker early windows
-# were most of the streams' false triggers (the first windows of a preparation that moves
-# against the swipe; 14 → 8 in 9.9 min) and misread strokes (22 → 10), at the cost of 1 of
-# 194 swipes recalled and 0.5 points by any window (`cbgo train dynamic --real DIR --folds 4`).
+# answer must be a sure one. Weaker early windows are mostly the first windows of a preparation
+# that moves against the swipe to come, read as the opposite swipe: false triggers of the
+# held-out real people's streams (`cbgo train dynamic --real DIR --folds 4 --streams 24`).
 PARTIAL_P = 0.65
 # ...and the window before it in its stroke must have read the same top gesture, whatever its p:
 # one sure window alone is often a blip (a curving move's one window read as a swipe, a
-# preparation's first sure window). On the SHREC'17 train split's held-out people (`cbgo train
-# dynamic --real DIR --folds 4 --streams 24`) 127 → 115 false triggers in 121 min, 1990 → 1989
-# of 2120 swipes recalled, every trial answered as before (services/dynamic_gesture/README.md).
+# preparation's first sure window). The same command measures it; an early answer so comes one
+# window (`eval_period_s`) later.
 # A stroke that began within NEW_HAND_S of its hand's first frame was under way when the hand
 # appeared: often the move that brings the hand into the field, or a wind-up, before the
-# gesture (a Leap hand rising into view before a swipe right was first reported swipe_up;
-# SHREC'17's recordings start with the hand's appearance). Its running windows younger than
-# NEW_HAND_WAIT_S are reported only from NEW_HAND_P. On the SHREC'17 train split's held-out
-# people the first reported gesture went 91.9 → 93.5 %, by any window 94.55 → 94.89 %
-# (services/dynamic_gesture/README.md).
+# gesture (a Leap hand rising into view before a swipe right reads as a swipe up; SHREC'17's
+# recordings start with the hand's appearance). Its running windows younger than
+# NEW_HAND_WAIT_S are reported only from NEW_HAND_P. The first reported gesture of the
+# held-out real people measures it (`cbgo train dynamic --real DIR --folds 4`; live, `cbgo
+# bench dynamic --real ~/.cache/cbgo/leapmotion-swipes --per-class 0`).
 NEW_HAND_S = 0.15
 NEW_HAND_WAIT_S = 0.5
 NEW_HAND_P = 0.9
@@ -167,7 +165,7 @@ class SegmenterConfig:
         "a window whose palm moved this fast in fewer than a tenth of its samples and never "
         "rolled min_peak_roll_deg_s is a slow move (a preparation, re-positioning, drift), not "
         "evaluated (real swipes of the SHREC'17 train split: 9 in 10 have a fifth of their "
-        "samples above 280 mm/s)"))
+        "samples above 280 mm/s, `cbgo bench dynamic --realism DIR`)"))
     min_peak_roll_deg_s: float = field(default=120.0, metadata=_help(
         "the roll rate that makes a slow-moving window a possible rotate, deg/s, when the "
         "roll (as k*roll) is most of its motion"))
@@ -626,11 +624,12 @@ class Segmenter:
         """Whether a window is more than a twitch, faster than a slow move and no exit.
 
         A running stroke's windows must be faster (`mid_peak_speed_mm_s`) than its final one:
-        the early windows of slow moves just past 200 mm/s were most of the false triggers of
-        the simulated continuous streams. A slow window that rolls fast is a possible rotate
-        only when the roll is most of its motion: a palm rolling back while the hand moves
-        back slowly (a return, a re-positioning) is a slow move
-        (services/dynamic_gesture/README.md).
+        the early windows of a slow move just past the final line (a re-positioning, the move
+        to a swipe's start) look like a small swipe. A slow window that rolls fast is a
+        possible rotate only when the roll is most of its motion: a palm rolling back while
+        the hand moves back slowly (a return, a re-positioning) is a slow move. The false
+        triggers of continuous streams measure both (`cbgo bench dynamic --streams-sim 48`;
+        `cbgo train dynamic --real DIR --folds 4 --streams 24`).
         """
         c = self.config
         space = float(np.linalg.norm(window.obs[:, :3], axis=1).max())
@@ -706,14 +705,16 @@ REVERSE_COS_MAX = -0.2
 # A gesture has one return. Once a return has come back this share of the gesture's
 # displacement, a later reversing stroke is still that return only if it starts within
 # RETURN_GAP_S of the return's end (a return made in two parts); otherwise it is a new gesture
-# (swipe right, come back, swipe left). Chosen on the SHREC'17 train split's held-out people
-# (`cbgo train dynamic --real DIR --folds 4`: unchanged there, gap 0.5 s cost a final window).
+# (swipe right, come back, swipe left). Measured on the held-out real people (`cbgo train
+# dynamic --real DIR --folds 4`) and the simulated streams, whose returns are fitted to real
+# ones (`cbgo bench dynamic --users 2 --no-latency --streams-sim 48`).
 RETURNED_SHARE = 0.7
 RETURN_GAP_S = 0.3
 # A gesture the hand slowed in mid-way is two strokes. The second one, a gesture too, that starts
 # within CONTINUE_GAP_S of the first one's end and goes the same way (cosine ≥ CONTINUE_COS,
-# within 60°), carries it on: the return comes back over both (SHREC'17 train split, held-out
-# people's streams: a swipe_up made as 81 + 44 mm, its 140 mm return reported as a swipe_down).
+# within 60°), carries it on: the return comes back over both, and is not taken for the
+# opposite swipe (a swipe_up made as 81 + 44 mm comes back about 140 mm: more than twice the
+# second stroke, `ReturnFilter`'s ``farther``).
 CONTINUE_GAP_S = 0.3
 CONTINUE_COS = 0.5
 ROLL_BACK = 2.0  # a turn after a move is that move's roll coming back up to this many times it
@@ -776,14 +777,15 @@ class ReturnFilter:
     ``sure``) and the reversing stroke was much faster (more than ``faster`` times its peak
     speed); or the reversing stroke went much farther in space (more than ``farther`` times).
     People come back about as far as they swiped, while they swipe farther than they
-    prepared (SHREC'17 train split, `cbgo bench dynamic --realism DIR`: a return goes 0.94
-    of the swipe's length, median, 1.38 at the 90th percentile; a swipe goes 2.15 times as
-    far as a preparation that reversed it, median, 1.06 at the 10th). A stroke cut short by
-    the hand leaving is always a return: it has neither speed nor length to judge. A stroke
-    reversing a non-gesture (a preparation classified ``none``) is always reported. A gesture
-    has one return: once one has come back `RETURNED_SHARE` of the way, only a stroke starting
-    within `RETURN_GAP_S` of its end is still that return. A gesture made in two strokes (the
-    hand slowed mid-way) is one gesture, whose return comes back over both (`observe`).
+    prepared (SHREC'17 train split, `cbgo bench dynamic --realism DIR --users 24`: a return
+    goes 0.96 of the swipe's length, median [0.56, 1.42 at the 10th and 90th percentiles];
+    a swipe goes 2.20 [1.39, 4.97] times as far as a preparation that reversed it). A stroke
+    cut short by the hand leaving is always a return: it has neither speed nor length to
+    judge. A stroke reversing a non-gesture (a preparation classified ``none``) is always
+    reported. A gesture has one return: once one has come back `RETURNED_SHARE` of the way,
+    only a stroke starting within `RETURN_GAP_S` of its end is still that return. A gesture
+    made in two strokes (the hand slowed mid-way) is one gesture, whose return comes back
+    over both (`observe`).
     It also remembers what each hand's running stroke said: the top gesture its next window
     must confirm (`confirms`) and its surest published window, which its final window answers
     with if surer (`stroke_answer`).
@@ -792,10 +794,9 @@ class ReturnFilter:
         within_s: how soon after a gesture's end a reversing stroke counts as its return
             (0 turns the filter off).
         cos_max: the cosine between the displacements below which a stroke reverses: -0.2
-            (more than 102° apart), as real returns come back on a curve, not straight (on
-            the SHREC'17 train split, held-out people, -0.2 rather than -0.5 cut the false
-            triggers of their streams from 29 to 21, kept their recall and answered more
-            swipe trials right, 95.1 % from 94.7 %: `cbgo train dynamic --real DIR --folds 4`).
+            (more than 102° apart), as real returns come back on a curve, not straight
+            (`cbgo train dynamic --real DIR --folds 4` measures it on the held-out real
+            people's trials and streams).
         faster: how much faster than an unsure gesture its reversal must be to be reported.
         sure: the probability from which only a farther reversal is reported.
         farther: how much farther than a gesture its reversal must go to be reported.

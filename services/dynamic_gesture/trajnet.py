@@ -17,7 +17,7 @@ p_net`` over the gestures the network knows and ``none``, renormalised (a produc
 a gesture must look right to both). A gesture the network does not know (one a user taught,
 or a shipped one a user's own version replaced) keeps the DTW probability it had; the blend
 shares out only the rest. Measured on the SHREC'17 train split's people, leave-people-out
-(README, "A second opinion that reads the whole path").
+(`cbgo train dynamic --real DIR --folds 4`; docs/design/dynamic_gesture.md).
 
 Training needs torch (`fit`); the service runs the numpy forward pass (`TrajectoryNet`).
 """
@@ -44,9 +44,10 @@ EPOCHS = 60
 def encode(obs: np.ndarray, final: bool, pose_change: float, side: str) -> np.ndarray:
     """Returns the network's input for one window, in the right hand's space.
 
-    Its path and size, not its speed or duration: a network that read them learned the
-    training people's speeds and no longer heard quick textbook strokes (README); speed is
-    left to the templates' calibration, which reads the peak speed.
+    Its path and size, not its speed or duration: a network that reads them learns the
+    training people's speeds and misses quick textbook strokes (`cbgo bench dynamic
+    --plain-strokes 2`); speed is left to the templates' calibration, which reads the peak
+    speed.
 
     Args:
         obs: the window's observation (n, 4): x, y, z, k·roll (mm).

@@ -44,7 +44,8 @@ TRAINERS: dict[str, tuple[str, str]] = {
 # Which service each benchmark and trainer measures or trains (`cbgo up --list` shows them).
 SERVICE_OF: dict[str, str] = {
     "bridge": "leap-bridge", "static": "static-gesture", "dynamic": "dynamic-gesture",
-    "episode": "episode", "intent": "intent", "intent-check": "intent", "sim": "mujoco-sim", "web": "web",
+    "episode": "episode", "intent": "intent", "intent-check": "intent", "sim": "mujoco-sim",
+    "web": "web",
 }
 
 

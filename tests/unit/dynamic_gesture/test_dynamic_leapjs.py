@@ -10,7 +10,8 @@ from cbgo import keys, wire
 from cbgo.hands import leapjs as hands_leapjs
 from cbgo.services.dynamic_gesture.stroke import Segmenter
 from cbgo_tools.data import leapjs
-from cbgo_tools.dynamic_gesture import realbench
+from cbgo_tools.dynamic_gesture import streams
+from cbgo_tools.dynamic_gesture.trials import leapjs_trial
 
 
 def leapjs_hand(palm, hand_id=7, side="right"):
@@ -91,7 +92,7 @@ def test_names_variants_people_and_takes_come_from_the_file_names(dataset):
     assert {(r.gesture, r.variant, r.person, r.take) for r in recs} == {
         ("swipe_right", "palm", "01", 1), ("tap", "", "01", 2),
         ("swipe_right", "palm", "02", 1), ("tap", "", "02", 2)}
-    trials = [realbench.leapjs_trial(r) for r in recs]
+    trials = [leapjs_trial(r) for r in recs]
     assert {(t.truth, t.gesture) for t in trials} == {("swipe_right", "swipe_right#palm"),
                                                      ("none", "tap")}
 
@@ -113,14 +114,14 @@ def test_the_segmenter_cuts_one_swipe_out_of_a_converted_recording(dataset):
 
 def test_a_trial_plays_its_frames_at_their_recorded_times(dataset):
     rec = leapjs.read_set(dataset)[0]
-    frames = realbench.leapjs_trial(rec).frames()
+    frames = leapjs_trial(rec).frames()
     assert len(frames) == len(rec.frames())
     assert frames[-1][0] == pytest.approx((len(frames) - 1) / 115.0, abs=1e-5)
 
 
 def test_a_stream_plays_recordings_back_to_back_with_the_hand_never_leaving(dataset):
-    trials = [realbench.leapjs_trial(r) for r in leapjs.read_set(dataset)]
-    frames, spans = realbench.trials_stream(trials)
+    trials = [leapjs_trial(r) for r in leapjs.read_set(dataset)]
+    frames, spans = streams.trials_stream(trials)
     assert [name for name, _, _ in spans] == [t.truth for t in trials]
     times = [t for t, _ in frames]
     assert all(b > a for a, b in zip(times, times[1:], strict=False))  # one clock, forward
@@ -129,7 +130,7 @@ def test_a_stream_plays_recordings_back_to_back_with_the_hand_never_leaving(data
              for a, b in zip(frames, frames[1:], strict=False)]
     assert max(steps) < 20.0  # no jump between recordings: the hand moves there
     for (_, _, a1), (_, b0, _) in zip(spans, spans[1:], strict=False):
-        assert b0 - a1 >= realbench.MOVE_S + realbench.HOLD_S
+        assert b0 - a1 >= streams.MOVE_S + streams.HOLD_S
     for _, hands in frames[::40]:
         msg = keys.HANDS_FRAME.message(ts=1.0, seq=0, source="replay", device="leapjs",
                                        hands=hands)
@@ -137,21 +138,21 @@ def test_a_stream_plays_recordings_back_to_back_with_the_hand_never_leaving(data
 
 
 def test_with_returns_each_swipe_is_followed_by_a_move_back_outside_every_span(dataset):
-    trials = [realbench.leapjs_trial(r) for r in leapjs.read_set(dataset)]
+    trials = [leapjs_trial(r) for r in leapjs.read_set(dataset)]
     swipe = next(t for t in trials if t.truth == "swipe_right")
-    plain, spans = realbench.trials_stream([swipe])
-    frames, with_return = realbench.trials_stream([swipe], returns=True)
+    plain, spans = streams.trials_stream([swipe])
+    frames, with_return = streams.trials_stream([swipe], returns=True)
     assert with_return == spans and frames[:len(plain)] == plain
     back = frames[len(plain):]
     assert back and back[0][0] > spans[0][2]  # after the swipe's span
     start, end = (np.asarray(h[0]["palm_position"]) for h in (plain[0][1], plain[-1][1]))
     moved = np.asarray(back[-1][1][0]["palm_position"]) - end
-    assert moved == pytest.approx(-realbench.RETURN_LENGTH * (end - start), abs=1e-6)
+    assert moved == pytest.approx(-streams.RETURN_LENGTH * (end - start), abs=1e-6)
     steps = np.linalg.norm(np.diff([h[0]["palm_position"] for _, h in back], axis=0), axis=1)
     assert steps.max() < 20.0  # a move, not a jump
     none_trial = next(t for t in trials if t.truth == "none")
-    assert realbench.trials_stream([none_trial], returns=True)[0] == \
-        realbench.trials_stream([none_trial])[0]  # no return after what is no swipe
+    assert streams.trials_stream([none_trial], returns=True)[0] == \
+        streams.trials_stream([none_trial])[0]  # no return after what is no swipe
 
 
 def test_a_blended_hand_turns_with_unit_vectors_half_way():
@@ -159,7 +160,7 @@ def test_a_blended_hand_turns_with_unit_vectors_half_way():
     b, pb = leapjs_hand([100.0, 200.0, 0.0])
     b["palmNormal"] = [1.0, 0.0, 0.0]
     ha, hb = hands_leapjs.to_hand(a, pa), hands_leapjs.to_hand(b, pb)
-    mid = realbench.blend_hands(ha, hb, 0.5)
+    mid = streams.blend_hands(ha, hb, 0.5)
     assert np.allclose(mid["palm_position"], [50.0, 200.0, 0.0])
     assert np.isclose(np.linalg.norm(mid["palm_normal"]), 1.0)
     assert np.allclose(mid["palm_normal"], np.array([1.0, -1.0, 0.0]) / np.sqrt(2))
@@ -182,7 +183,7 @@ def test_a_hand_turned_over_between_recordings_turns_rigidly_at_an_even_rate():
                    for f in ha["fingers"]]}
     tip = np.asarray(ha["fingers"][1]["bones"][3]["next_joint"]) - [0, 200, 0]
     for s, turned_deg in ((0.25, 45.0), (0.5, 90.0), (0.75, 135.0)):
-        mid = realbench.blend_hands(ha, palm_up, s)
+        mid = streams.blend_hands(ha, palm_up, s)
         normal = np.asarray(mid["palm_normal"])
         angle = np.degrees(np.arccos(np.clip(normal @ ha["palm_normal"], -1.0, 1.0)))
         assert angle == pytest.approx(turned_deg, abs=1e-6)  # not a flip in the middle

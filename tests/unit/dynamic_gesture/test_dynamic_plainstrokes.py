@@ -5,7 +5,7 @@ import pytest
 
 from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library
 from cbgo.services.dynamic_gesture.stroke import SegmenterConfig
-from cbgo_tools.dynamic_gesture import bench, plainstrokes, realbench
+from cbgo_tools.dynamic_gesture import bench, plainstrokes, scoring
 
 
 def test_a_plain_stroke_goes_its_way_from_where_it_starts_and_comes_back():
@@ -28,7 +28,7 @@ def test_a_brisk_swipe_is_heard_and_a_small_slow_one_is_not():
     brisk = plainstrokes.draw("swipe_up", 3, 0.4, True, rng)  # 180 mm, peak 840 mm/s
     slow = plainstrokes.draw("swipe_up", 0, 1.0, True, rng)  # 60 mm, peak 112 mm/s
     rows = plainstrokes.score([brisk, slow], classifier, SegmenterConfig(), bench.replay_trial)
-    assert [r["dynamic"] for r in rows] == ["swipe_up", realbench.NOTHING]
+    assert [r["dynamic"] for r in rows] == ["swipe_up", scoring.NOTHING]
     figures = plainstrokes.report(rows, log=lambda *_: None)
     assert figures["cells"]["swipes 180 0.4"] == [1, 1]
     assert figures["cells"]["swipes 60 1"] == [0, 1]

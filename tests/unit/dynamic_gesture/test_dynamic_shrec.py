@@ -7,7 +7,15 @@ from cbgo import keys, wire
 from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig
 from cbgo.wire import DYNAMIC_GESTURES
 from cbgo_tools.data import shrec
-from cbgo_tools.dynamic_gesture import realbench, simdata, train
+from cbgo_tools.dynamic_gesture import realism, report, scoring, simdata, streams, train
+from cbgo_tools.dynamic_gesture.trials import (
+    Trial,
+    mirrored_stream,
+    mirrored_trial,
+    pick_trials,
+    shrec_trial,
+    simulated_trials,
+)
 
 
 def upright_hand(palm_m=(0.427, -0.307, 0.488)) -> np.ndarray:
@@ -83,7 +91,7 @@ def test_the_swipe_is_the_stroke_that_goes_farthest_its_way(dataset):
     truths = shrec.label_windows(seq.name, windows)
     assert "swipe_right" in truths
     assert shrec.label_windows("grab", windows) == ["none"] * len(windows)
-    (habit,) = realbench.habits(windows, truths, np.array(shrec.FIELD_CENTRE_MM), 100.0)
+    (habit,) = realism.habits(windows, truths, np.array(shrec.FIELD_CENTRE_MM), 100.0)
     assert 180 < habit["length_mm"] < 205 and abs(habit["roll_deg"]) < 2
     # A minimum-jerk move peaks at 1.875 times its mean speed; the stroke the segmenter cuts
     # leaves its slowest ends out, so less.
@@ -92,7 +100,7 @@ def test_the_swipe_is_the_stroke_that_goes_farthest_its_way(dataset):
 
 def test_a_continuous_stream_keeps_the_hand_in_view_between_recordings(dataset):
     seqs = shrec.read_split(dataset, "train") + shrec.read_split(dataset, "test")
-    joints, spans = realbench.stream_joints(seqs)
+    joints, spans = streams.stream_joints(seqs)
     assert [name for name, _, _ in spans] == ["swipe_right", "swipe_right"]
     steps = np.linalg.norm(np.diff(joints[:, 1], axis=0), axis=1)
     assert steps.max() < 0.03  # no jump: the hand moves back between the two, slowly
@@ -110,7 +118,7 @@ def test_between_recordings_a_skeleton_turned_over_turns_rigidly_about_its_palm(
     b = (a - palm) @ flip.T + palm + [0.05, 0.0, 0.0]
     hand_a, hand_b = shrec.to_hands(np.stack([a, b]))
     shares = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
-    turned = realbench.turned_joints(a, b, hand_a, hand_b, shares)
+    turned = streams.turned_joints(a, b, hand_a, hand_b, shares)
     assert np.allclose(turned[0], a) and np.allclose(turned[-1], b)
     hands = shrec.to_hands(turned)
     for hand, turned_deg in zip(hands, 180 * shares, strict=True):
@@ -125,23 +133,23 @@ def test_between_recordings_the_hand_moves_and_turns_slowly():
         return {"palm_position": [x, 200.0, 0.0], "palm_normal": normal}
 
     down, side = [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]
-    assert realbench.junction_s(hand(0, down), hand(10, down)) == realbench.MOVE_S
-    assert realbench.junction_s(hand(0, down), hand(300, down)) == pytest.approx(
-        300 / realbench.MOVE_MM_S)
+    assert streams.junction_s(hand(0, down), hand(10, down)) == streams.MOVE_S
+    assert streams.junction_s(hand(0, down), hand(300, down)) == pytest.approx(
+        300 / streams.MOVE_MM_S)
     # a palm turned 90°: two seconds at 45°/s, not a rotate in 0.6 s
-    assert realbench.junction_s(hand(0, down), hand(10, side)) == pytest.approx(
-        90 / realbench.TURN_DEG_S)
+    assert streams.junction_s(hand(0, down), hand(10, side)) == pytest.approx(
+        90 / streams.TURN_DEG_S)
 
 
 def test_a_recording_mirrored_is_the_other_hands_swipe_the_other_way(dataset):
     (seq,) = shrec.read_split(dataset, "train")
-    trial = realbench.mirrored_trial(realbench.shrec_trial(seq))
+    trial = mirrored_trial(shrec_trial(seq))
     assert trial.truth == "swipe_left" and trial.gesture == "swipe_right mirrored"
     frames = trial.frames()
     assert {h["side"] for _, hands in frames for h in hands} == {"left"}
     palm_x = [hands[0]["palm_position"][0] for _, hands in frames if hands]
     assert palm_x[-1] - palm_x[0] == pytest.approx(-200.0, abs=5.0)
-    stream = realbench.mirrored_stream(*realbench.shrec_stream([seq]))
+    stream = mirrored_stream(*streams.shrec_stream([seq]))
     assert [name for name, _, _ in stream[1]] == ["swipe_left"]
     assert {h["side"] for _, hands in stream[0] for h in hands} == {"left"}
 
@@ -151,7 +159,7 @@ def test_stream_figures_count_recalled_strokes_and_each_false_stroke_once():
     reports = [("swipe_up", 1.2, 1.6, "s1"), ("swipe_up", 1.2, 1.9, "s1"),  # recalled twice
                ("swipe_down", 2.5, 3.0, "s2"), ("swipe_down", 2.5, 3.2, "s2"),  # one false
                ("swipe_right", 5.1, 5.8, "s3")]  # the wrong gesture over a stroke: false
-    figures = realbench.stream_figures(reports, strokes, 62.0)
+    figures = scoring.stream_figures(reports, strokes, 62.0)
     assert figures == {"strokes": 2, "recalled": 1, "false_triggers": 2,
                        "other_gesture_triggers": 0, "misread": 0,
                        "other_minutes": pytest.approx(1.0)}
@@ -160,7 +168,7 @@ def test_stream_figures_count_recalled_strokes_and_each_false_stroke_once():
 def test_a_stroke_that_recalls_a_swipe_is_a_misread_not_a_false_trigger():
     strokes = [("swipe_up", 1.0, 2.0)]
     reports = [("swipe_left", 1.1, 1.4, "s1"), ("swipe_up", 1.1, 1.9, "s1")]
-    figures = realbench.stream_figures(reports, strokes, 61.0)
+    figures = scoring.stream_figures(reports, strokes, 61.0)
     assert (figures["recalled"], figures["false_triggers"], figures["misread"]) == (1, 0, 1)
 
 
@@ -170,7 +178,7 @@ def test_stream_figures_count_triggers_during_other_gestures_apart():
     reports = [("swipe_up", 1.2, 1.9, "s1"),
                ("swipe_down", 11.0, 11.5, "s2"),  # during the grab
                ("swipe_left", 20.0, 20.4, "s3")]  # on a hold or move
-    figures = realbench.stream_figures(reports, strokes, 67.0, others)
+    figures = scoring.stream_figures(reports, strokes, 67.0, others)
     assert figures["false_triggers"] == 1 and figures["other_gesture_triggers"] == 1
     assert figures["other_minutes"] == pytest.approx(1.0)  # 67 s less the swipe and the grab
 
@@ -230,7 +238,7 @@ def test_a_missed_recording_says_how_far_its_palm_went_and_which_way(tmp_path):
 
 
 def test_simulated_trials_give_each_user_every_dynamic_gesture_in_its_own_appearance():
-    trials = realbench.simulated_trials(1, 50_000, simdata.HELD_OUT)
+    trials = simulated_trials(1, 50_000, simdata.HELD_OUT)
     assert sorted(t.truth for t in trials) == sorted(DYNAMIC_GESTURES)
     for trial in trials:
         frames = trial.frames()
@@ -241,9 +249,9 @@ def test_simulated_trials_give_each_user_every_dynamic_gesture_in_its_own_appear
 
 def test_the_live_score_counts_rotate_when_the_trials_hold_it():
     rows = [{"truth": "swipe_up", "dynamic": "swipe_up"},
-            {"truth": "rotate", "dynamic": realbench.NOTHING},
+            {"truth": "rotate", "dynamic": scoring.NOTHING},
             {"truth": "none", "dynamic": "swipe_left"}]
-    block = realbench.score(rows, "dynamic")
+    block = scoring.score(rows, "dynamic")
     assert block["recall"] == {"swipe_up": 1.0, "rotate": 0.0}
     assert block["balanced_accuracy"] == 0.5 and block["other_false"] == 1
 
@@ -251,24 +259,24 @@ def test_the_live_score_counts_rotate_when_the_trials_hold_it():
 def test_the_live_score_says_how_far_other_people_could_move_it():
     rows = [{"truth": t, "dynamic": t, "person": p}
             for p in "abc" for t in ("swipe_up", "swipe_down")]
-    rows[0]["dynamic"] = realbench.NOTHING  # person a misses a swipe_up
-    block = realbench.score(rows, "dynamic")
+    rows[0]["dynamic"] = scoring.NOTHING  # person a misses a swipe_up
+    block = scoring.score(rows, "dynamic")
     lo, hi = block["interval"]
     assert block["people"] == 3 and lo < block["balanced_accuracy"] < hi == 1.0
-    one = realbench.score([{**r, "person": "a"} for r in rows], "dynamic")
+    one = scoring.score([{**r, "person": "a"} for r in rows], "dynamic")
     assert one["interval"] is None  # one person: nothing to draw from
 
 
 def test_the_live_report_names_gesture_messages_no_summary_holds(capsys):
     rows = [{"truth": "swipe_up", "dynamic": "swipe_up", "finals": "swipe_up",
-             "first": "swipe_up", "summary": realbench.NOTHING, "person": "a"}]
+             "first": "swipe_up", "summary": scoring.NOTHING, "person": "a"}]
     lines = []
     result = {"trials": rows, "streams": [], "latency_ms": {},
               "episode_stray": {"late": 1, "outside": 0}}
-    assert realbench.report_live(result, None, lines.append) == 0
+    assert report.report_live(result, None, lines.append) == 0
     assert any("1 gesture messages arrived after their episode had ended" in x for x in lines)
     lines.clear()
-    realbench.report_live({**result, "episode_stray": {"late": 0, "outside": 0}}, None,
+    report.report_live({**result, "episode_stray": {"late": 0, "outside": 0}}, None,
                           lines.append)
     assert not any("episode service" in x for x in lines)
 
@@ -276,12 +284,12 @@ def test_the_live_report_names_gesture_messages_no_summary_holds(capsys):
 def test_the_live_report_judges_issue_14s_goals_and_a_short_stream_sample_not_at_all():
     rows = [{"truth": t, "dynamic": t, "finals": t, "first": t, "summary": t, "person": p}
             for p in "abc" for t in ("swipe_up", "swipe_down")]
-    rows[0]["summary"] = realbench.NOTHING  # person a's swipe_up missing from its summary
+    rows[0]["summary"] = scoring.NOTHING  # person a's swipe_up missing from its summary
     stream = {"strokes": 10, "recalled": 9, "false_triggers": 3, "other_gesture_triggers": 0,
               "misread": 0, "other_minutes": 2.0}
     result = {"trials": rows, "streams": [stream], "latency_ms": {}, "episode_stray": {}}
     lines = []
-    assert realbench.report_live(result, None, lines.append) == 0
+    assert report.report_live(result, None, lines.append) == 0
     goals = {name: (met, text) for name, met, text in result["goals"]}
     assert goals["real swipes: gestures/dynamic ≥ 95% balanced"][0] is True
     met, text = goals["real swipes: episode summary's g ≥ 95% balanced"]
@@ -293,16 +301,16 @@ def test_the_live_report_judges_issue_14s_goals_and_a_short_stream_sample_not_at
     printed = "\n".join(lines)
     assert "  MISS  real swipes: episode summary's g ≥ 95% balanced: 83.3%" in printed
     assert "  ----  continuous streams: false triggers ≤ 1/min: 3 in 2.0 min" in printed
-    long = realbench.stream_goals({**stream, "strokes": 60, "recalled": 55,
+    long = scoring.stream_goals({**stream, "strokes": 60, "recalled": 55,
                                    "other_minutes": 12.0})
     assert [met for _, met, _ in long] == [True, True]  # 55 of 60; 3 in 12 min: 0.25/min
-    worse = realbench.stream_goals({**stream, "strokes": 60, "recalled": 50,
+    worse = scoring.stream_goals({**stream, "strokes": 60, "recalled": 50,
                                     "false_triggers": 13, "other_minutes": 12.0})
     assert [met for _, met, _ in worse] == [False, False]
     blocks = {field: {"balanced_accuracy": 0.96, "interval": None, "people": 0}
               for field in ("dynamic", "summary")}
-    many = [{"truth": "swipe_up"}] * realbench.GOALS["synthetic_trials"]
-    synthetic = realbench.live_goals({**blocks, "trials": many}, {"strokes": 0}, synthetic=True)
+    many = [{"truth": "swipe_up"}] * scoring.GOALS["synthetic_trials"]
+    synthetic = scoring.live_goals({**blocks, "trials": many}, {"strokes": 0}, synthetic=True)
     assert synthetic[0][:2] == ("synthetic strokes, rotate included: gestures/dynamic ≥ 97% "
                                 "balanced", False)
     assert synthetic[2] == ("continuous streams", None, "none played")
@@ -311,21 +319,21 @@ def test_the_live_report_judges_issue_14s_goals_and_a_short_stream_sample_not_at
 def test_synthetic_strokes_are_judged_over_enough_trials_only():
     blocks = {field: {"balanced_accuracy": 0.99, "interval": None, "people": 0}
               for field in ("dynamic", "summary")}
-    least = realbench.GOALS["synthetic_trials"]
+    least = scoring.GOALS["synthetic_trials"]
     few = [{"truth": "swipe_up"}] * 80 + [{"truth": "none"}] * least  # others do not count
-    goals = realbench.live_goals({**blocks, "trials": few}, {"strokes": 0}, synthetic=True)
+    goals = scoring.live_goals({**blocks, "trials": few}, {"strokes": 0}, synthetic=True)
     assert [met for _, met, _ in goals[:2]] == [None, None]  # 80 trials: a draw of 16 users
     assert goals[0][2].startswith("99.0%, 80 trials (under 250 trials: too few to judge")
     enough = [{"truth": "swipe_up"}] * least
-    goals = realbench.live_goals({**blocks, "trials": enough}, {"strokes": 0}, synthetic=True)
+    goals = scoring.live_goals({**blocks, "trials": enough}, {"strokes": 0}, synthetic=True)
     assert [met for _, met, _ in goals[:2]] == [True, True]
 
 
 def test_the_live_score_reads_the_field_asked_for():
     rows = [{"truth": "swipe_up", "dynamic": "swipe_up", "first": "swipe_down"},
             {"truth": "swipe_down", "dynamic": "swipe_down", "first": "swipe_down"}]
-    assert realbench.score(rows, "dynamic")["balanced_accuracy"] == 1.0
-    assert realbench.score(rows, "first")["recall"] == {"swipe_up": 0.0, "swipe_down": 1.0}
+    assert scoring.score(rows, "dynamic")["balanced_accuracy"] == 1.0
+    assert scoring.score(rows, "first")["recall"] == {"swipe_up": 0.0, "swipe_down": 1.0}
 
 
 class _Answers:
@@ -402,9 +410,9 @@ def test_whether_a_swipe_was_returned_is_unknown_where_its_recording_ends_too_so
     truths = shrec.label_windows(seq.name, windows)
     middle = np.array(shrec.FIELD_CENTRE_MM)
     end_t = (len(seq.joints()) - 1) / shrec.RATE_HZ
-    (cut,) = realbench.habits(windows, truths, middle, 100.0, end_t)
+    (cut,) = realism.habits(windows, truths, middle, 100.0, end_t)
     assert np.isnan(cut["returned"])  # the recording stops 0.3 s after the swipe
-    (held,) = realbench.habits(windows, truths, middle, 100.0, end_t + realbench.NEIGHBOUR_S)
+    (held,) = realism.habits(windows, truths, middle, 100.0, end_t + realism.NEIGHBOUR_S)
     assert held["returned"] == 0.0  # long enough to have seen a return: there was none
 
 
@@ -413,13 +421,13 @@ def test_a_habits_spread_is_split_between_people_and_within_a_person(capsys):
     # too (nothing between them), a's swipes lie log 2 from their mean, b's not at all
     rows = [{"person": p, "length_mm": v, "duration_s": 0.5, "peak_mm_s": np.nan}
             for p, v in (("a", 100.0), ("a", 400.0), ("b", 200.0), ("b", 200.0))]
-    between, within = realbench.person_spread(rows, "length_mm")
+    between, within = realism.person_spread(rows, "length_mm")
     assert between == pytest.approx(0.0, abs=1e-12)
     assert within == pytest.approx(np.sqrt((np.log(2) ** 2 + 0.0) / 2))
-    assert all(np.isnan(realbench.person_spread(rows, "peak_mm_s")))  # nothing known
+    assert all(np.isnan(realism.person_spread(rows, "peak_mm_s")))  # nothing known
     one = [dict(r, person="a") for r in rows]  # one person: no spread between people
-    assert np.isnan(realbench.person_spread(one, "length_mm")[0])
-    table = realbench.print_spread(rows, one)
+    assert np.isnan(realism.person_spread(one, "length_mm")[0])
+    table = realism.print_spread(rows, one)
     assert table["duration_s"]["real"] == (0.0, 0.0)
     assert "between people, within" in capsys.readouterr().out
 
@@ -428,7 +436,7 @@ def test_peak_speed_by_length_shows_whether_short_swipes_are_too_slow_for_the_ga
     # peak speed grows as the square root of length: slope 0.5; the 50 mm swipes are slow
     lengths = [50.0, 50.0, 80.0, 120.0, 160.0, 250.0]
     rows = [{"length_mm": v, "peak_mm_s": 25.0 * np.sqrt(v)} for v in lengths]
-    table = realbench.print_speed_by_length(rows, rows[2:])
+    table = realism.print_speed_by_length(rows, rows[2:])
     assert table["real"]["slope"] == pytest.approx(0.5)
     short = table["real"]["20-70"]
     assert short["share"] == pytest.approx(2 / 6) and short["under_200"] == 1.0
@@ -442,7 +450,7 @@ def test_the_by_way_table_gives_each_ways_medians_real_beside_simulated(capsys):
         return {"way": way, "length_mm": length, "peak_mm_s": 2.5 * length, "duration_s": 0.6}
 
     real = [row("across", 230.0), row("across", 240.0), row("down", 130.0)]
-    table = realbench.by_way(real, [row("up", 150.0)])
+    table = realism.by_way(real, [row("up", 150.0)])
     assert table["across"]["real"] == {"swipes": 2, "length_mm": 235.0, "peak_mm_s": 587.5,
                                        "duration_s": 0.6}
     assert table["down"]["real"]["swipes"] == 1 and table["up"]["real"]["swipes"] == 0
@@ -455,23 +463,23 @@ def test_geometry_measures_a_forward_bow_and_a_drift_off_the_swipes_direction():
     # from the person, -z) in its middle and ends 20 mm higher and 40 mm farther forward
     s = np.linspace(0.0, 1.0, 21)[:, None]
     xyz = s * np.array([-200.0, 20.0, -40.0]) + np.sin(np.pi * s) * np.array([0.0, 0.0, -30.0])
-    sideways = realbench.swipe_sideways("swipe_left", "right")
+    sideways = realism.swipe_sideways("swipe_left", "right")
     assert np.allclose(sideways, [0, 1, 0])  # across: up
-    g = realbench.geometry(xyz, 200.0, sideways)
+    g = realism.geometry(xyz, 200.0, sideways)
     assert g["drift_sideways"] == pytest.approx(0.1) and g["drift_forward"] == pytest.approx(0.2)
     # the bow is taken off the straight line between the ends, which is tilted by the drift
     assert g["arc_forward"] == pytest.approx(0.15, abs=0.01) and abs(g["arc_sideways"]) < 0.01
     # up and down are measured medial: a left hand's as the right hand's mirror image
-    assert np.allclose(realbench.swipe_sideways("swipe_down", "right"), [-1, 0, 0])
-    assert np.allclose(realbench.swipe_sideways("swipe_down", "left"), [1, 0, 0])
+    assert np.allclose(realism.swipe_sideways("swipe_down", "right"), [-1, 0, 0])
+    assert np.allclose(realism.swipe_sideways("swipe_down", "left"), [1, 0, 0])
 
 
 def test_the_geometry_table_gives_each_ways_percentiles_real_beside_simulated(capsys):
     def row(way: str, arc: float) -> dict:
-        return {"way": way, **dict.fromkeys(realbench.GEOMETRY, 0.0), "arc_forward": arc}
+        return {"way": way, **dict.fromkeys(realism.GEOMETRY, 0.0), "arc_forward": arc}
 
     real = [row("across", a) for a in (0.1, 0.2, 0.3)]
-    table = realbench.print_geometry(real, [row("up", 0.0)])
+    table = realism.print_geometry(real, [row("up", 0.0)])
     assert table["across"]["arc_forward"]["real"][0] == pytest.approx(0.2)
     assert table["across"]["arc_forward"]["simulated"] == []
     assert table["up"]["arc_forward"]["simulated"] == [0.0, 0.0, 0.0]
@@ -479,23 +487,23 @@ def test_the_geometry_table_gives_each_ways_percentiles_real_beside_simulated(ca
 
 
 def test_ungated_counts_slow_swipes_and_keeps_the_rest_of_the_config():
-    config = realbench.ungated(SegmenterConfig(end_speed_mm_s=55.0))
+    config = realism.ungated(SegmenterConfig(end_speed_mm_s=55.0))
     assert config.min_peak_speed_mm_s == 0.0 and config.mid_peak_speed_mm_s == 0.0
     assert config.end_speed_mm_s == 55.0
 
 
 def test_the_realism_table_gives_a_yes_or_no_habit_as_a_share_and_draws_the_habits(tmp_path,
                                                                                    capsys):
-    rows = [dict.fromkeys(realbench.HABITS, float(k)) | {"returned": r}
+    rows = [dict.fromkeys(realism.HABITS, float(k)) | {"returned": r}
             for k, r in enumerate((1.0, 0.0, np.nan, 1.0))]
-    same = [dict.fromkeys(realbench.HABITS, 2.0)] * 2  # one value: still drawn
-    table = realbench.print_realism(rows, same)
+    same = [dict.fromkeys(realism.HABITS, 2.0)] * 2  # one value: still drawn
+    table = realism.print_realism(rows, same)
     assert table["returned"]["real"][:2] == [pytest.approx(2 / 3), 3.0]  # of the 3 known
     assert table["length_mm"]["real"][0] == 1.5 and table["length_mm"]["simulated"][0] == 2.0
     assert table["length_mm"]["real"][3] == 4 and table["length_mm"]["simulated"][3] == 2
     out = capsys.readouterr().out
     assert "returned (share)" in out and "n 4" in out
-    path = realbench.plot_realism(rows, same, tmp_path / "figures")
+    path = realism.plot_realism(rows, same, tmp_path / "figures")
     assert path == tmp_path / "figures" / "realism.png"
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -510,12 +518,12 @@ def test_plot_without_realism_says_what_it_draws(tmp_path, capsys):
 
 
 def test_the_live_bench_plays_as_many_other_gestures_as_asked():
-    trials = [realbench.Trial(truth, truth, str(i % 3), None)
+    trials = [Trial(truth, truth, str(i % 3), None)
               for i in range(4) for truth in ("swipe_up", "swipe_down", "none", "none")]
-    assert realbench.pick_trials(trials, 0, 1) == trials  # everything, in order
-    swipes_only = realbench.pick_trials(trials, 0, 1, others=0)
+    assert pick_trials(trials, 0, 1) == trials  # everything, in order
+    swipes_only = pick_trials(trials, 0, 1, others=0)
     assert [t.truth for t in swipes_only].count("none") == 0 and len(swipes_only) == 8
-    two = realbench.pick_trials(trials, 1, 1, others=2)
+    two = pick_trials(trials, 1, 1, others=2)
     assert sorted(t.truth for t in two) == ["none", "none", "swipe_down", "swipe_up"]
-    assert len(realbench.pick_trials(trials, 1, 1)) == 3  # others as many as per_class
-    assert len(realbench.pick_trials(trials, 1, 1, others=-1)) == 2 + 8
+    assert len(pick_trials(trials, 1, 1)) == 3  # others as many as per_class
+    assert len(pick_trials(trials, 1, 1, others=-1)) == 2 + 8

@@ -12,7 +12,7 @@ from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library, read_de
 from cbgo.services.dynamic_gesture.stroke import SegmenterConfig
 from cbgo.simuser.scenario import UserStyle
 from cbgo.wire import DYNAMIC_GESTURES
-from cbgo_tools.dynamic_gesture import bench, realbench, simdata, train
+from cbgo_tools.dynamic_gesture import bench, realism, simdata, train
 
 
 @pytest.fixture(scope="module")
@@ -161,8 +161,8 @@ def test_the_default_ranges_draw_the_default_style_but_its_swipes_still_vary():
 def test_the_realism_bench_draws_its_simulated_users_from_the_ranges_asked():
     def median_peak(speed: float) -> float:
         ranges = replace(simdata.RANGES["default"], speed=((speed, speed),))
-        rows = realbench.simulated_habits(1, 3, SegmenterConfig(), ranges)
-        return float(np.median(realbench.known_values(rows, "peak_mm_s")))
+        rows = realism.simulated_habits(1, 3, SegmenterConfig(), ranges)
+        return float(np.median(realism.known_values(rows, "peak_mm_s")))
 
     # the same person's swipes, one and a half times as quick
     assert median_peak(1.5) > 1.3 * median_peak(1.0)

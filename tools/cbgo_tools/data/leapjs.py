@@ -108,10 +108,10 @@ def read_set(root: Path) -> list[Recording]:
         out.append(Recording(gesture, variant, path.parent.name, int(take), path))
     if not out:
         raise FileNotFoundError(
-            f"no LeapJS recordings (NAME-TAKE.json) under {root}: copy the Guinevere folder of "
-            f"github.com/sluyters/QuantumLeap (backend/src/datasets/dynamic/guinevere) there, "
-            f"or write leapmotion-all's swipes there (python -m "
-            f"cbgo_tools.data.leapjs swipes SRC {root})")
+            f"no LeapJS recordings (NAME-TAKE.json) under {root}: fetch the Guinevere set of "
+            f"github.com/sluyters/QuantumLeap (cbgo data fetch guinevere, then use "
+            f"{cache_dir() / 'guinevere'}), or write leapmotion-all's swipes there (cbgo data "
+            f"fetch leapmotion-all; cbgo data convert leapmotion-all SRC {root})")
     return out
 
 

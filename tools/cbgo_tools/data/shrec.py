@@ -51,7 +51,7 @@ RATE_HZ = 30.0
 N_JOINTS = 22
 FIELD_CENTRE_MM = np.array([0.0, 230.0, 0.0])
 # 1000 × (the train split's median palm position of swipes) mapped to FIELD_CENTRE_MM;
-# `median_palm` measures it (cbgo bench dynamic --real prints it).
+# `median_palm` measures it: ``median_palm(read_split(DIR, "train", SWIPES))``.
 DEFAULT_OFFSET_MM = np.array([-427.0, 537.0, -488.0])
 GESTURES = {1: "grab", 2: "tap", 3: "expand", 4: "pinch", 5: "rotation_cw", 6: "rotation_ccw",
             7: "swipe_right", 8: "swipe_left", 9: "swipe_up", 10: "swipe_down", 11: "swipe_x",

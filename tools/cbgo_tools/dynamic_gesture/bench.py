@@ -11,10 +11,10 @@
    held still for seconds) add the false strokes of a resting hand to the ``none`` row. Their
    strokes start wherever the hand is and cross the middle of the field, mostly without a
    rest, and come back (the habits fitted to real people). Then ``--streams-sim`` continuous
-   streams (`realbench.run_streams`): one long episode each, the hand never leaving, swipes and
-   rotates among drift, wobble, slow re-positioning and slow palm turns; recall of the strokes
-   and false triggers (a reported gesture, p ≥ 0.5, that no stroke of its name overlaps) per
-   minute outside the strokes.
+   streams (`run_streams`, `streams.stream_scenario`): one long episode each, the hand never
+   leaving, swipes and rotates among drift, wobble, slow re-positioning and slow palm turns;
+   recall of the strokes and false triggers (a reported gesture, p ≥ 0.5, that no stroke of its
+   name overlaps) per minute outside the strokes.
 2. **Cost.** Time per classification against the whole library (median, p99) on those
    windows, and DTW implementations compared on the same windows: vectorised numpy exact DTW,
    plain-Python exact DTW, fastdtw's exact ``dtw`` and its approximate ``fastdtw`` (radius 1)
@@ -28,15 +28,17 @@
    to be sure the hand stopped.
 
 4. **Real people** (``--real DIR``): the SHREC'17 skeletons or Leap Motion recordings
-   (LeapJS frames, `leapjs`) through live services, see `realbench`; ``--realism DIR``
-   compares the simulated users' swipe habits with theirs (``--plot FIG`` draws them).
+   (LeapJS frames, `leapjs`) as trials (`trials`) and continuous streams (`streams`) through
+   live services (`live`), scored (`scoring`) and printed (`report`); ``--realism DIR``
+   compares the simulated users' swipe habits with theirs (`realism`; ``--plot FIG`` draws
+   them).
    ``--live-sim N`` plays N held-out simulated users the same way
-   (`realbench.simulated_trials`: each dynamic gesture once per appearance of the hand,
+   (`trials.simulated_trials`: each dynamic gesture once per appearance of the hand,
    rotate included), to score the episode summary on them too. ``--replay-sim N`` replays
    the same trials of many more users offline through the service's own logic (segmenter,
    return filter, library: `replay_trial`), which answers trial by trial as the live services
    do, in a fraction of real time: a synthetic figure is judged over
-   `realbench.GOALS["synthetic_trials"]` trials at least (a draw of 16 users moves it by
+   `scoring.GOALS["synthetic_trials"]` trials at least (a draw of 16 users moves it by
    several points).
 
 5. **Plain strokes** (``--plain-strokes REPS``): textbook minimum-jerk swipes and rotates on a
@@ -45,8 +47,8 @@
    ``--replay-sim``: no simulated person's habits, so where in length and duration a stroke
    stops being heard.
 
-Every live run and the simulated streams end with issue 14's goals, judged on the figures just
-measured (`realbench.live_goals`, `realbench.stream_goals`).
+Every live run and the simulated streams end with the acceptance goals, judged on the figures
+just measured (`scoring.live_goals`, `scoring.stream_goals`).
 
 Examples::
 
@@ -86,7 +88,17 @@ from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig
 from cbgo.simuser.scenario import load_scenario
 from cbgo.simuser.user import SimulatedUser
 from cbgo_tools.data import shrec
-from cbgo_tools.dynamic_gesture import plainstrokes, realbench, simdata, train
+from cbgo_tools.dynamic_gesture import (
+    live,
+    plainstrokes,
+    realism,
+    report,
+    scoring,
+    simdata,
+    streams,
+    train,
+    trials,
+)
 
 BENCH_SEED = 50_000
 
@@ -129,7 +141,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "real people (SHREC'17 skeletons, `shrec`; Leap Motion LeapJS recordings, `leapjs`)")
     real.add_argument("--real", type=Path, metavar="DIR", default=None,
                       help="instead of the above: play real recordings through live services "
-                           "(realbench): a SHREC'17 datasetShrec folder, or a folder of LeapJS "
+                           "(live): a SHREC'17 datasetShrec folder, or a folder of LeapJS "
                            "recordings (the Guinevere set)")
     real.add_argument("--split", choices=("train", "test"), default="train",
                       help="which official split's people [train; test is reserved for "
@@ -219,6 +231,15 @@ def score(classifier: Classifier, users: list[simdata.UserData],
         and classifier.names[int(classifier.classify(lw.window).argmax())] != NONE)
     out["still_windows"] = len(extra)
     return out
+
+
+def run_streams(classifier, users: int, seed: int, config, ranges) -> dict:
+    """Scores `users` continuous streams of simulated users; prints and returns the totals."""
+    total = streams.synthetic_streams(classifier, users, seed, config, ranges)
+    print(f"\nsynthetic continuous streams ({users} simulated users, hand never leaves; "
+          f"swipes from anywhere, returns, drift, wobble, slow re-positioning, slow palm "
+          f"turns): " + scoring.describe_streams(total))
+    return total
 
 
 # ============================================================================ cost
@@ -331,6 +352,28 @@ def _print_block(title: str, block: dict, names: list[str]) -> None:
     print(f"balanced accuracy {block['balanced_accuracy']:.2%}, ECE {block['ece']:.3f}")
 
 
+def run_real(root: Path, split: str, per_class: int, stream_count: int, seed: int,
+             json_path: Path | None, mirror: bool = False, returns: bool = False,
+             log=print, others: int | None = None, library: Path | None = None) -> int:
+    """``--real DIR``: a real set's trials and streams through the live services, scored.
+
+    `mirror`: as left hands; `returns`: LeapJS streams with a return move after each swipe;
+    `others`: how many recordings of the other gestures (`trials.pick_trials`); `library`: a
+    library file the service uses instead of the installed one (`live.play_live`).
+    """
+    device, all_trials, sequences = trials.real_trials(root, split)
+    if device == "shrec17" and split == "test":
+        log("note: the test split's people are reserved for acceptance checks; never tune on "
+            "these figures")
+    chosen = trials.pick_trials(all_trials, per_class, seed, others)
+    played = streams.stream_sets(device, all_trials, sequences, stream_count, seed + 1, returns)
+    where = f"{device}'s {split} split" if device == "shrec17" else device
+    if mirror:
+        chosen, played, where = trials.mirrored_set(chosen, played, where)
+    return report.report_live(live.play_live(chosen, played, device, where, log, library),
+                              json_path, log)
+
+
 def run_real_folds(args: argparse.Namespace) -> int:
     """``--real DIR --folds N``: each group of people live, against a library learned without it.
 
@@ -338,7 +381,7 @@ def run_real_folds(args: argparse.Namespace) -> int:
     same simulated users, the other groups' people); the trials of all groups are scored
     together.
     """
-    device, all_trials, sequences = realbench.real_trials(args.real, "train")
+    device, all_trials, sequences = trials.real_trials(args.real, "train")
     if device != "shrec17" or args.split != "train":
         print("--folds needs the SHREC'17 datasetShrec folder and its train split: the libraries "
               "are learned from the other groups of that split's people", file=sys.stderr)
@@ -355,25 +398,25 @@ def run_real_folds(args: argparse.Namespace) -> int:
             save_default(library, classifier.templates, classifier.calibration,
                          train.observation(), {"held_out_people": sorted(held)}, classifier.net)
             people = {str(person) for person in held}
-            trials = realbench.pick_trials([t for t in all_trials if t.person in people],
-                                           args.per_class, args.seed + k, args.others)
-            streams = realbench.stream_sets(device, [], [s for s in sequences if s.person in held],
-                                            args.streams, args.seed + 1 + k)
+            chosen = trials.pick_trials([t for t in all_trials if t.person in people],
+                                        args.per_class, args.seed + k, args.others)
+            played = streams.stream_sets(device, [], [s for s in sequences if s.person in held],
+                                         args.streams, args.seed + 1 + k)
             where = f"group {k + 1}/{args.folds} of shrec17's train split, people {sorted(held)}"
             if args.mirror:
-                trials, streams, where = realbench.mirrored_set(trials, streams, where)
-            results.append(realbench.play_live(trials, streams, device, where, library=library))
+                chosen, played, where = trials.mirrored_set(chosen, played, where)
+            results.append(live.play_live(chosen, played, device, where, library=library))
     latency = [ms for r in results for ms in r["stroke_latencies_ms"]]
     merged = {"trials": [t for r in results for t in r["trials"]],
               "streams": [s for r in results for s in r["streams"]],
-              "stroke_latencies_ms": latency, "latency_ms": realbench.latency_figures(latency),
+              "stroke_latencies_ms": latency, "latency_ms": scoring.latency_figures(latency),
               "episode_stray": {key: sum(r["episode_stray"].get(key, 0) for r in results)
                                 for key in ("late", "outside")}}
     print(f"\nall {args.folds} groups, each played against a library learned without it:")
-    return realbench.report_live(merged, args.json)
+    return report.report_live(merged, args.json)
 
 
-def replay_trial(classifier: Classifier, trial: realbench.Trial, config: SegmenterConfig
+def replay_trial(classifier: Classifier, trial: trials.Trial, config: SegmenterConfig
                  ) -> dict:
     """Returns what the live services' `gestures/dynamic` would answer for one trial.
 
@@ -381,7 +424,7 @@ def replay_trial(classifier: Classifier, trial: realbench.Trial, config: Segment
     through the return filter and the library (`train.trial_answers`), as the service decides
     what it publishes. ``dynamic`` is the most probable reported gesture, ``first`` the first,
     ``finals`` the most probable among final windows (``nothing`` where none has p ≥
-    `stroke.GESTURE_P`), as `realbench.run_trials` scores the live messages.
+    `stroke.GESTURE_P`), as `live.run_trials` scores the live messages.
     """
     windows = shrec.recording_windows(trial.frames(), Segmenter(config))
     answers = train.trial_answers(classifier, windows, config.return_s)
@@ -397,14 +440,14 @@ def run_replay_sim(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     for k in range(args.replay_sim):  # one user at a time: the same trials as --live-sim's
         rows += [replay_trial(classifier, trial, config)
-                 for trial in realbench.simulated_trials(1, args.seed + k, ranges)]
+                 for trial in trials.simulated_trials(1, args.seed + k, ranges)]
         if (k + 1) % 10 == 0 or k + 1 == args.replay_sim:
             print(f"  {k + 1}/{args.replay_sim} users, {len(rows)} trials, "
                   f"{time.perf_counter() - t0:.0f} s", flush=True)
     result = {"users": args.replay_sim, "ranges": args.ranges, "trials": rows}
     print(f"\n{len(rows)} trials of {args.replay_sim} simulated {args.ranges} users, replayed "
           f"offline through the service's segmenter, return filter and library")
-    return realbench.report_replay(result, args.json)
+    return report.report_replay(result, args.json)
 
 
 def run_plain_strokes(args: argparse.Namespace) -> int:
@@ -438,39 +481,39 @@ def run(args: argparse.Namespace) -> int:
     if args.real is not None and args.folds > 0:
         return run_real_folds(args)
     if args.real is not None:
-        return realbench.run_real(args.real, args.split, args.per_class, args.streams,
-                                  args.seed, args.json, args.mirror, args.stream_returns,
-                                  others=args.others, library=_chosen_library(args))
+        return run_real(args.real, args.split, args.per_class, args.streams,
+                        args.seed, args.json, args.mirror, args.stream_returns,
+                        others=args.others, library=_chosen_library(args))
     if args.live_sim > 0:
-        trials = realbench.simulated_trials(args.live_sim, args.seed,
+        simulated = trials.simulated_trials(args.live_sim, args.seed,
                                             simdata.RANGES[args.ranges])
-        result = realbench.play_live(trials, [], "simulated",
-                                     f"{args.live_sim} simulated {args.ranges} users",
-                                     library=_chosen_library(args))
+        result = live.play_live(simulated, [], "simulated",
+                                f"{args.live_sim} simulated {args.ranges} users",
+                                library=_chosen_library(args))
         result["ranges"] = args.ranges
-        return realbench.report_live(result, args.json, synthetic=True)
+        return report.report_live(result, args.json, synthetic=True)
     if args.replay_sim > 0:
         return run_replay_sim(args)
     if args.plain_strokes > 0:
         return run_plain_strokes(args)
     if args.realism is not None:
         config = SegmenterConfig()
-        real = realbench.real_habits(args.realism, "train", config)
+        real = realism.real_habits(args.realism, "train", config)
         ranges = simdata.RANGES[args.ranges]
         print(f"simulated: {args.users} {args.ranges} users")
-        simulated = realbench.simulated_habits(args.users, args.seed, config, ranges)
-        table = realbench.print_realism(real, simulated)
-        table["spread"] = realbench.print_spread(real, simulated)
-        table["by_way"] = realbench.by_way(real, simulated)
-        table["geometry"] = realbench.print_geometry(real, simulated)
-        ungated = realbench.ungated(config)
-        table["speed_by_length"] = realbench.print_speed_by_length(
-            realbench.real_habits(args.realism, "train", ungated),
-            realbench.simulated_habits(args.users, args.seed, ungated, ranges))
+        simulated = realism.simulated_habits(args.users, args.seed, config, ranges)
+        table = realism.print_realism(real, simulated)
+        table["spread"] = realism.print_spread(real, simulated)
+        table["by_way"] = realism.by_way(real, simulated)
+        table["geometry"] = realism.print_geometry(real, simulated)
+        ungated = realism.ungated(config)
+        table["speed_by_length"] = realism.print_speed_by_length(
+            realism.real_habits(args.realism, "train", ungated),
+            realism.simulated_habits(args.users, args.seed, ungated, ranges))
         if args.json:
             args.json.write_text(json.dumps(table, indent=1))
         if args.plot:
-            print(f"wrote {realbench.plot_realism(real, simulated, args.plot)}")
+            print(f"wrote {realism.plot_realism(real, simulated, args.plot)}")
         return 0
     library = Library(args.templates, None).load()
     classifier = library.classifier()
@@ -490,11 +533,9 @@ def run(args: argparse.Namespace) -> int:
           "final ones won by a gesture")
     _print_block("mid-stroke windows", acc["mid_stroke"], classifier.names)
     if args.streams_sim > 0:  # --streams-sim 0: no continuous streams
-        figures["streams"] = realbench.run_streams(classifier, args.streams_sim,
-                                                   args.seed + 20_000, SegmenterConfig(),
-                                                   simdata.RANGES[args.ranges])
-        print("goals (issue 14):\n"
-              + metrics.format_goals(realbench.stream_goals(figures["streams"])))
+        figures["streams"] = run_streams(classifier, args.streams_sim, args.seed + 20_000,
+                                         SegmenterConfig(), simdata.RANGES[args.ranges])
+        print("goals:\n" + metrics.format_goals(scoring.stream_goals(figures["streams"])))
     finals = [lw.window for u in users for lw in u.windows if lw.window.final]
     figures["cost"] = cost(classifier, finals)
     c = figures["cost"]

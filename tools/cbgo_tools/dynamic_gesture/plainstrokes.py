@@ -26,7 +26,7 @@ import numpy as np
 from cbgo.hands.model import HandShape, build_hand, neutral_pose
 from cbgo.simuser.motion import min_jerk
 from cbgo.simuser.user import SWIPE_DIRECTIONS
-from cbgo_tools.dynamic_gesture import realbench
+from cbgo_tools.dynamic_gesture import scoring, trials
 
 RATE_HZ = 60.0
 LENGTHS_MM = (60.0, 90.0, 130.0, 180.0, 250.0)
@@ -124,14 +124,14 @@ def score(strokes: list[Stroke], classifier, config, replay, mirror: bool = Fals
           ) -> list[dict]:
     """Returns one row per stroke: its grid cell and the service's answers (`replay`).
 
-    With `mirror`, each stroke is made by a left hand (`realbench.mirrored_trial`: a swipe
+    With `mirror`, each stroke is made by a left hand (`trials.mirrored_trial`: a swipe
     right becomes a swipe left, and is scored so).
     """
     rows = []
     for k, stroke in enumerate(strokes):
-        trial = realbench.Trial(stroke.gesture, stroke.gesture, f"plain-{k}", frames(stroke))
+        trial = trials.Trial(stroke.gesture, stroke.gesture, f"plain-{k}", frames(stroke))
         if mirror:
-            trial = realbench.mirrored_trial(trial)
+            trial = trials.mirrored_trial(trial)
         rows.append(replay(classifier, trial, config) | {
             "size": stroke.size, "seconds": stroke.seconds, "rest": stroke.rest})
     return rows
@@ -155,7 +155,7 @@ def report(rows: list[dict], log=print) -> dict:
                 cells.append(f"{right:>5d}/{len(cell):<4d}")
             log(f"{size:>8g}" + " ".join(cells))
     misses = [r for r in rows if r["dynamic"] != r["truth"]]
-    answers = Counter("nothing" if r["dynamic"] == realbench.NOTHING else "another gesture"
+    answers = Counter("nothing" if r["dynamic"] == scoring.NOTHING else "another gesture"
                       for r in misses)
     rests = {rest: [r["dynamic"] == r["truth"] for r in rows if r["rest"] == rest]
              for rest in (True, False)}

@@ -64,7 +64,7 @@ from cbgo.services.dynamic_gesture.stroke import (
 )
 from cbgo.wire import DYNAMIC_GESTURES
 from cbgo_tools.data import shrec
-from cbgo_tools.dynamic_gesture import realbench, simdata
+from cbgo_tools.dynamic_gesture import scoring, simdata, streams
 
 TRAIN_SEED = 1000
 CALIB_SEED = 2000
@@ -82,10 +82,11 @@ RULES = ("all", "finals", "first")
 """How a trial is answered: by every reported window, by the final windows only, or by the
 first reported gesture (what a consumer that acts at once sees)."""
 SUFFIXES = {"all": "", "finals": "_finals", "first": "_first"}  # of the figures' keys
-STREAMS_PER_PERSON = 2  # continuous streams of each held-out person (`realbench.person_streams`)
+STREAMS_PER_PERSON = 2  # continuous streams of each held-out person (`streams.person_streams`)
 # Two streams per person give about ten false triggers over 20 people: enough to see a rule
-# move them a lot, too few to tell 0.8/min from 1.2/min; so are six (draws of six gave 0.7 to
-# 1.3/min in stop 45), and `--streams 24` is the figure to go by (README).
+# move them a lot, too few to tell 0.8/min from 1.2/min; a few more streams per person still
+# move the rate by half from one draw to the next, so `--streams 24` (about 2000 swipes, two
+# hours outside the gestures) is the false-trigger figure to go by.
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -278,7 +279,7 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     windows only. The swipes are answered again mirrored, as a left hand makes them (the
     recordings are all of right hands). Each held-out person also plays `streams_per_person`
     continuous streams of their recordings, the hand never leaving, through the service's
-    logic offline (`realbench.replay_stream`).
+    logic offline (`streams.replay_stream`).
     """
     people = sorted({seq.person for seq, _, _ in recordings})
     names = [*shrec.SWIPE_DIRECTIONS, "rotate", "nothing"]
@@ -288,7 +289,7 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
     other_false = dict.fromkeys(RULES, 0)
     misses = []
     scored = []  # (person, truth, {rule: answer}) of every held-out swipe recording
-    streams = []
+    stream_rows = []
     rng = np.random.default_rng(TRAIN_SEED)
     config = SegmenterConfig(return_s=return_s)
     for k, (held, classifier) in enumerate(fold_classifiers(sim_train, sim_calib, recordings,
@@ -315,13 +316,14 @@ def cross_validate(sim_train: list, sim_calib: list, recordings: list, folds: in
                     left_right[rule][MIRROR[seq.name]][1] += 1
         for person in sorted(held):
             own = [seq for seq, _, _ in recordings if seq.person == person]
-            streams += [realbench.replay_stream(classifier, frames,
-                                                *realbench.split_spans(spans), config)
-                        for frames, spans in realbench.person_streams(own, streams_per_person,
-                                                                      rng)]
+            stream_rows += [streams.replay_stream(classifier, frames,
+                                                  *streams.split_spans(spans), config)
+                            for frames, spans in streams.person_streams(own, streams_per_person,
+                                                                        rng)]
         log(f"  fold {k + 1}/{folds}: people {sorted(held)} scored")
     out = {"folds": folds, "people": people, "names": names, "other_trials": other,
-           "streams": realbench.stream_totals(streams), "streams_per_person": streams_per_person,
+           "streams": scoring.stream_totals(stream_rows),
+           "streams_per_person": streams_per_person,
            "misses": misses}
     for rule in RULES:
         c = confusion[rule]
@@ -436,9 +438,9 @@ def print_leave_people_out(block: dict, misses: bool = False) -> None:
         each = block.get("streams_per_person", STREAMS_PER_PERSON)
         print(f"\ncontinuous streams of the held-out people ({each} each, 10 "
               f"recordings, hand never leaves; replayed offline): "
-              + realbench.describe_streams(s))
-        print("goals (issue 14; these streams replayed offline, not over the wire):\n"
-              + metrics.format_goals(realbench.stream_goals(s)))
+              + scoring.describe_streams(s))
+        print("goals (these streams replayed offline, not over the wire):\n"
+              + metrics.format_goals(scoring.stream_goals(s)))
 
 
 def run(args: argparse.Namespace) -> int:
