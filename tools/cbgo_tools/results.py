@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import datetime
 import io
+import os
 import platform
 import shlex
 import subprocess
@@ -55,10 +56,12 @@ def document(argv: list[str], output: str) -> str:
     """Returns the Markdown of a results document for a command and what it printed."""
     command = shlex.join(argv)
     when = datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
-    return (f"# Results: `{argv[0]}`\n\n"
-            f"Written by `{command}` on {when} (cbgo {cbgo.__version__}, commit {commit()}, "
-            f"{platform.machine()}, Python {platform.python_version()}). Run the same command "
-            f"to regenerate it; it is not edited by hand.\n\n"
+    load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
+    return (f"# Results: `{' '.join(argv[:3])}`\n\n"
+            f"Written by `{command}` on {when} (cbgo {cbgo.__version__}, commit {commit()}; "
+            f"{os.cpu_count()} CPUs, {platform.machine()}, Python {platform.python_version()}; "
+            f"load average at the end {load}: timings depend on it). Run the same command to "
+            f"regenerate it; it is not edited by hand.\n\n"
             f"```text\n{output.rstrip()}\n```\n")
 
 
