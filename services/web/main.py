@@ -8,7 +8,8 @@ Behaviour (the contract is services/web/README.md):
   ``cbgo/robot/stop`` and ``cbgo/intent/feedback``; a bad one is rejected, counted, logged and
   answered with the reason;
 - every ``status_period_s`` the services are asked for their status (`cbgo.client.status`) and
-  their liveliness tokens; the page's services panel shows the answers;
+  their liveliness tokens; the page's services panel shows the answers, and the robot panel
+  where the robot cell's world comes from (`robot_cell_view`);
 - the workspace comes from the robot's ``cbgo/sim/info`` answer, until then from
   `cbgo.world.workspace` (the contract's default grid).
 
@@ -210,7 +211,7 @@ class Web(Service):
             rows.append({"name": name, "alive": name in tokens, "pid": reply.get("pid"),
                          "host": reply.get("host"), "uptime_s": reply.get("uptime_s"),
                          "counters": reply.get("counters"),
-                         "last_error": reply.get("last_error")})
+                         "last_error": reply.get("last_error"), **robot_cell_view(reply)})
         return {"ts": time.time(), "services": rows}
 
     def _ask_workspace(self) -> None:
@@ -223,6 +224,22 @@ class Web(Service):
             self.workspace = {"source": f"cbgo/sim/info of {reply['robot']}",
                               "workspace": reply["workspace"]}
             self._send("@workspace", self.workspace)
+
+
+def robot_cell_view(status: dict) -> dict:
+    """Returns where a robot cell's world comes from and how many actions it has done.
+
+    A robot cell's status (`cbgo.robot_cell`) carries ``scene_source`` (``seed N`` or
+    ``scene``) and action counts; the page says so beside the robot's state, so that a start
+    scene in which the robot holds something reads as the robot's start, not as an action.
+    Other services' statuses give nothing.
+    """
+    if not isinstance(status.get("scene_source"), str):
+        return {}
+    counts = status.get("actions")
+    done = counts.get("actions") if isinstance(counts, dict) else None
+    return {"scene_source": status["scene_source"],
+            "actions": done if isinstance(done, int) else None}
 
 
 main = main_for(Web)

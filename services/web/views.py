@@ -10,7 +10,7 @@ Rules (no Zenoh here; `main.py` and `replay.py` feed it, the tests call it direc
   of each period is sent, the others are counted as skipped; events, summaries, intents, plans
   and scenes are never skipped;
 - evidence is recomputed from every static and dynamic message (before downsampling) with the
-  episode service's own model and default settings (`services/episode/evidence.py`), reset at
+  episode service's own model and default settings (`cbgo.evidence`), reset at
   each episode start, exactly as ``cbgo plot episode`` recomputes it offline: the episode
   service does not publish its evidence.
 """

@@ -31,7 +31,7 @@ from typing import Any
 
 from cbgo import wire
 from cbgo.config import ZenohOptions, add_zenoh_arguments, resolve_zenoh, zenoh_config
-from cbgo.errors import CbgoError, ConfigError, QueryError, RejectedMessage
+from cbgo.errors import CbgoError, ConfigError, QueryError, RejectedMessage, zenoh_reason
 from cbgo.keys import TOPICS, Keys
 
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
@@ -80,14 +80,28 @@ def open_session(options: ZenohOptions, name: str = "cbgo-client",
         conf = zenoh_config(options, name)
     except ConfigError as e:
         raise ConnectError(f"configuration error: {e}", 2) from None
+    except zenoh.ZError as e:  # an endpoint or --cfg value Zenoh cannot parse
+        raise ConnectError(f"configuration error: {zenoh_reason(e)}; endpoints look like "
+                           "tcp/127.0.0.1:7447 or tls/router:7447", 2) from None
     if connect_timeout_s is not None:
         conf.insert_json5("connect/timeout_ms", str(int(connect_timeout_s * 1000)))
     try:
         return zenoh.open(conf)
     except zenoh.ZError as e:
-        raise ConnectError(
-            f"cannot reach the Zenoh network at {', '.join(options.connect)} ({e}); is "
-            "`cbgo up` or `cbgo router` running? Use --connect to point elsewhere.") from None
+        raise ConnectError(unreachable(options.connect, connect_timeout_s,
+                                       zenoh_reason(e))) from None
+
+
+def unreachable(endpoints: list[str], timeout_s: float | None, reason: str = "") -> str:
+    """Returns the message for a router that does not answer: where, and how to start one.
+
+    Zenoh's own reason is left out when it only says that the connection timed out.
+    """
+    within = f" within {timeout_s:g} s" if timeout_s is not None else ""
+    why = "" if not reason or "Timeout" in reason else f" ({reason})"
+    return (f"no Zenoh router answered at {', '.join(endpoints) or '(no endpoint)'}{within}"
+            f"{why}. Start one with `cbgo up` (the router and the services) or `cbgo router`, "
+            "or point --connect (or ZENOH_CONNECT) at a running one.")
 
 
 def connect(flags: argparse.Namespace | Mapping[str, Any],

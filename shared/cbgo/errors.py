@@ -6,7 +6,17 @@
 - `ConfigError`: bad configuration found at start-up; the message names the fix.
 - `DeviceError`: a device (sensor, robot) failed; tolerated a few times, then the process exits
   non-zero so that its supervisor restarts it.
+
+`zenoh_reason` turns a Zenoh error into text for people: Zenoh's messages end in the Rust
+source file that raised them, which tells a user nothing.
 """
+
+import re
+
+# " at /root/.cargo/.../orchestrator.rs:388." : where in Zenoh's Rust sources an error arose.
+_RUST_LOCATION = re.compile(r"\s+at\s+\S+?\.rs:\d+\.?")
+# Json5Err(Message { msg: "...", location: ... }): a config value Zenoh could not parse.
+_JSON5_MESSAGE = re.compile(r'Json5Err\(Message \{ msg: "(.*?)", location: .*\}\)', re.S)
 
 
 class CbgoError(Exception):
@@ -50,3 +60,14 @@ class DeviceError(CbgoError):
 
 class RecordingError(CbgoError):
     """A recording (MCAP or toolbox JSON) that is missing, truncated, corrupt or malformed."""
+
+
+def zenoh_reason(error: BaseException | str) -> str:
+    """Returns a Zenoh error's message without Rust source locations and wrappers.
+
+    ``Invalid Key Expr `a//b`: empty chunks are forbidden ... at /root/.cargo/.../borrowed.rs:777.``
+    becomes ``Invalid Key Expr `a//b`: empty chunks are forbidden ...``.
+    """
+    text = _RUST_LOCATION.sub("", str(error))
+    text = _JSON5_MESSAGE.sub(lambda m: m.group(1), text)
+    return text.strip().rstrip(".")

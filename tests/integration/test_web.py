@@ -1,10 +1,14 @@
 """The web page in a real browser: Chromium (Debian's) driven by Playwright, headless.
 
-Against ``cbgo up --robot dry`` and ``cbgo demo --no-start --steps 1`` (issue 19's check):
+Against ``cbgo up --robot dry`` and ``cbgo demo --no-start --steps 1``:
 the services panel lists the running services, the 3D canvas renders, the intent panel shows
 the demo step's ``pick_up(cup1)``, STOP reaches ``cbgo/robot/stop`` and feedback reaches
 ``cbgo/intent/feedback``, a bad request is rejected and counted, the recording replays in the
 same page (``cbgo web --replay``, or opened from the live page), and the page logs no error.
+The first impression too: the robot panel shows the robot's own start state and where it comes
+from, scene labels never overlap, numbers are rounded, a refused intent reads as refused with
+its status and reason, the episode table and strip count the same episodes, and a service's
+last error is shown in full.
 Screenshots go to ``out/test-artifacts/web/`` (or ``$CBGO_TEST_ARTIFACTS/web``); look at them.
 
 Without chromium the module is skipped, except in CI (``CI=true``), where that fails.
@@ -12,6 +16,7 @@ Without chromium the module is skipped, except in CI (``CI=true``), where that f
 
 import io
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -55,7 +60,8 @@ def system(tmp_path_factory):
         url = stack.status("web")["url"]
         # Collect from the start, so the subscriptions have long reached the router when the
         # page publishes.
-        stack.collectors = {k: stack.collect(k) for k in ("robot/stop", "intent/feedback")}
+        stack.collectors = {k: stack.collect(k) for k in ("robot/stop", "intent/feedback",
+                                                          "scene/state", "episode/summary")}
         yield stack, url, expected, work
 
 
@@ -106,6 +112,23 @@ def distinct_colours(png: bytes) -> int:
     return len(image.getcolors(maxcolors=image.width * image.height))
 
 
+def label_boxes(page) -> list[dict]:
+    """The scene labels on the page: text and box (CSS px) of each one shown."""
+    return page.evaluate("""() => [...document.querySelectorAll('[data-testid=scene-labels] span')]
+        .map((el) => { const r = el.getBoundingClientRect();
+                       return {text: el.textContent, x: r.x, y: r.y, w: r.width, h: r.height}; })
+        .filter((b) => b.w > 0 && b.h > 0)""")
+
+
+def overlapping(boxes: list[dict]) -> list[tuple[str, str]]:
+    return [(a["text"], b["text"]) for i, a in enumerate(boxes) for b in boxes[i + 1:]
+            if a["x"] < b["x"] + b["w"] and b["x"] < a["x"] + a["w"]
+            and a["y"] < b["y"] + b["h"] and b["y"] < a["y"] + a["h"]]
+
+
+LONG_NUMBER = re.compile(r"\d\.\d{5,}")  # a float printed with all its digits
+
+
 def test_the_services_panel_lists_every_running_service(page, system):
     _, _, expected, _ = system
     services = page.locator("[data-testid=services]")
@@ -125,6 +148,35 @@ def test_the_scene_canvas_renders_the_workspace(page):
     assert not page.errors, page.errors
 
 
+def test_before_anything_happened_the_robot_panel_shows_the_robots_own_start(page, system):
+    stack, _, _, _ = system
+    # What dry-robot itself reports: its start scene (the world model's scene of --seed, in
+    # which it may hold an object and a drawer may be open), and no action since it started.
+    holding = stack.collectors["scene/state"].wait()[-1]["robot"]["holding"]
+    source = stack.status("dry-robot")["scene_source"]
+    plan = page.locator("[data-testid=plan]")
+    expect(plan).to_contain_text(f"holding {holding or 'nothing'}", timeout=20000)
+    expect(plan.locator("[data-testid=world-source]")).to_contain_text(
+        f"dry-robot's scene of {source} · no action since it started", timeout=20000)
+    expect(page.locator("[data-testid=intent]")).to_contain_text("no intent yet")
+    assert not page.errors, page.errors
+
+
+def test_scene_labels_never_overlap(page):
+    page.wait_for_function("document.querySelectorAll('[data-testid=scene-labels] span')"
+                           ".length >= 5")
+    boxes = label_boxes(page)
+    assert {"robot base", "workspace grid"} <= {b["text"] for b in boxes}, boxes
+    assert not overlapping(boxes), overlapping(boxes)
+    page.mouse.move(400, 400)  # turned to another view, they are laid out again
+    page.mouse.down()
+    page.mouse.move(520, 430, steps=5)
+    page.mouse.up()
+    page.wait_for_timeout(300)
+    assert not overlapping(label_boxes(page)), overlapping(label_boxes(page))
+    assert not page.errors, page.errors
+
+
 def test_after_a_demo_step_the_intent_panel_shows_pick_up_cup1(page, system):
     stack, _, _, work = system
     out = work / "demo"
@@ -139,6 +191,39 @@ def test_after_a_demo_step_the_intent_panel_shows_pick_up_cup1(page, system):
     expect(page.locator("[data-testid=episode-timeline] table")).to_contain_text("user1")
     expect(page.locator("[data-testid=scene-3d]")).to_be_visible()
     shot(page, "live-after-demo-step")
+    assert not overlapping(label_boxes(page)), overlapping(label_boxes(page))
+    assert not page.errors, page.errors
+
+
+def test_numbers_are_rounded_and_the_episode_table_and_strip_agree(page):
+    episodes = page.locator("[data-testid=episode-timeline]")
+    expect(episodes.locator("td", has_text="distance").first).to_be_visible()
+    text = page.locator("body").inner_text()
+    assert not LONG_NUMBER.search(text), LONG_NUMBER.findall(text)
+    rows = episodes.locator("tr[data-episode]").count()
+    bars = int(episodes.locator("#chart-episodes").get_attribute("data-episodes"))
+    assert rows == bars >= 1
+
+
+def test_a_refused_intent_shows_as_refused_with_its_status_and_reason(page, system):
+    stack, _, _, _ = system
+    episode = stack.collectors["episode/summary"].last()["episode"]  # the demo step's
+    reason = "no feasible intent in this scene: cup1 is out of reach"
+    # As the intent service refuses: no action, no object. The planner acts on none of it.
+    stack.put("intent", example("intent", episode=episode, status="infeasible", action=None,
+                                object=None, confidence=0.0, p_action={}, p_object={},
+                                reason=reason))
+    intent = page.locator("[data-testid=intent]")
+    expect(intent).to_contain_text("refused", timeout=20000)
+    expect(intent).to_contain_text("infeasible")
+    expect(intent).to_contain_text(reason)
+    expect(intent).not_to_contain_text("()")
+    row = page.locator(f"[data-testid=episode-timeline] tr[data-episode='{episode}']")
+    expect(row).to_contain_text("refused")
+    expect(row).to_contain_text("infeasible")
+    expect(row).to_contain_text(reason)
+    expect(row).not_to_contain_text("()")
+    shot(page, "live-refused-intent")
     assert not page.errors, page.errors
 
 
@@ -213,6 +298,24 @@ def test_a_bad_request_from_a_page_is_rejected_counted_and_answered(page, system
     status = stack.status("web")
     assert status["counters"]["rejected"] == before + 1
     assert "fly" in status["last_error"]["message"]
+    assert not page.errors, page.errors
+
+
+def test_a_services_last_error_is_shown_in_full(page):
+    # The bad request above is web's last error; the services poll brings it to the page.
+    panel = page.locator("[data-testid=services]")
+    error = panel.locator("tr[data-error-of=web]")
+    expect(error).to_contain_text("got 'fly'", timeout=20000)
+    # Measured in one go: the panel is redrawn at every status poll.
+    row, inside = page.evaluate("""() => [document.querySelector(
+            '[data-testid=services] tr[data-error-of=web]'),
+            document.querySelector('[data-testid=services]')]
+        .map((el) => { const r = el.getBoundingClientRect(); return [r.left, r.right]; })""")
+    assert inside[0] <= row[0] and row[1] <= inside[1], (row, inside)
+    assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
+    assert page.evaluate("""() => { const b = document.getElementById('services-body');
+                                    return b.scrollWidth <= b.clientWidth; }""")
+    shot(page, "live-services-last-error")
     assert not page.errors, page.errors
 
 

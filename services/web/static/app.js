@@ -5,11 +5,20 @@ import { colourOf, lines, spans, strip } from "./charts.js";
 import { SceneView } from "./scene.js";
 
 const WINDOW_S = 10;        // the gesture charts' time window
-const EPISODE_WINDOW_S = 60;
+const EPISODE_WINDOW_S = 60;  // the episode strip's shortest time span
+const EPISODES_SHOWN = 6;   // the newest episodes, in the table and on the strip alike
 const $ = (id) => document.getElementById(id);
 const esc = (v) => String(v ?? "").replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
 const pct = (p) => `${(100 * p).toFixed(0)}%`;
 const xyz = (p) => p ? `(${p.map((v) => v.toFixed(2)).join(", ")})` : "—";
+// A number for people: integers as they are, others to three significant digits
+// (0.09201324545581968 -> 0.092, 89.52360539551889 -> 89.5).
+const num = (v) => typeof v !== "number" || Number.isInteger(v) ? String(v) : String(Number(v.toPrecision(3)));
+const paramsText = (params) => Object.entries(params || {}).map(([k, v]) => `${k} ${num(v)}`).join(", ") || "—";
+// An intent the intent service did not accept names no action: it is shown as refused, with
+// its status and reason, never as an empty call "()".
+const refused = (i) => i.status !== "accepted";
+const call = (i) => `${i.action ?? "—"}(${i.object ?? ""})`;
 
 function emptyStore() {
   return { hands: null, scene: null, intentScene: null, robot: null, gaze: null, user: null, plan: null,
@@ -111,15 +120,14 @@ function placeholder(id, text) {
 function drawIntent() {
   const i = store.intent;
   if (!i) return placeholder("intent-body", "no intent yet");
-  const call = `${i.action ?? "—"}(${i.object ?? ""})`;
   $("intent-body").className = "";
   $("intent-body").innerHTML = `
-    <div><span class="big">${esc(call)}</span><span class="status ${esc(i.status)}">${esc(i.status)}</span></div>
+    <div><span class="big${refused(i) ? " refused" : ""}">${refused(i) ? "refused" : esc(call(i))}</span><span class="status ${esc(i.status)}">${esc(i.status)}</span></div>
     <div class="muted">episode ${esc(i.episode ?? "—")} · model ${esc(i.model)} · confidence ${pct(i.confidence)}</div>
     <div class="why"><b>reason:</b> ${esc(reasonInWords(i))}</div>
-    <div class="why"><b>why this object:</b> ${whyLine(i)}</div>
-    <div class="muted">p(action)</div>${bars(i.p_action, "")}
-    <div class="muted">p(object)</div>${bars(i.p_object, "obj")}`;
+    ${i.object ? `<div class="why"><b>why this object:</b> ${whyLine(i)}</div>` : ""}
+    ${Object.keys(i.p_action || {}).length ? `<div class="muted">p(action)</div>${bars(i.p_action, "")}` : ""}
+    ${Object.keys(i.p_object || {}).length ? `<div class="muted">p(object)</div>${bars(i.p_object, "obj")}` : ""}`;
 }
 
 function drawPlan() {
@@ -129,7 +137,7 @@ function drawPlan() {
     const i = p.intent;
     $("plan-body").className = "";
     $("plan-body").innerHTML = `
-      <div><b>${esc(i.action)}(${esc(i.object ?? "")})</b><span class="status ${esc(p.state)}">${esc(p.state)}</span></div>
+      <div><b>${esc(call(i))}</b><span class="status ${esc(p.state)}">${esc(p.state)}</span></div>
       <ol class="steps">${p.sequence.map((s) => `<li>${esc(s.action)}(${esc(s.object ?? "")})
         <span class="status ${esc(s.state)}">${esc(s.state)}</span></li>`).join("")}</ol>
       ${p.error ? `<div class="err">${esc(p.error)}</div>` : ""}`;
@@ -141,9 +149,20 @@ function drawPlan() {
     $("robot-body").innerHTML = `robot: TCP ${xyz(r?.tcp || store.scene?.robot?.tcp)}` +
       (r ? ` · gripper ${(r.gripper_width * 1000).toFixed(0)} mm · ${r.moving ? "moving" : "still"}` +
         (r.action ? ` · doing ${esc(r.action)}` : "") : "") +
-      ` · holding ${esc(held ?? "nothing")}` +
+      ` · holding ${esc(held ?? "nothing")}` + worldLine() +
       (store.stop ? `<div class="err">last stop: ${new Date(store.stop.ts * 1000).toLocaleTimeString()} ${esc(store.stop.reason ?? "")}</div>` : "");
   }
+}
+
+// Where the robot's world comes from, so that a start scene with a held cup or an open drawer
+// reads as the robot's own start, not as something that happened: the robot cell's status
+// (scene_source, actions) as the services poll brought it.
+function worldLine() {
+  const cell = store.services?.services.find((r) => r.scene_source);
+  if (!cell) return "";
+  const scene = cell.scene_source === "scene" ? "scene from a file or a reset" : `scene of ${cell.scene_source}`;
+  const done = cell.actions ? `${cell.actions} action${cell.actions === 1 ? "" : "s"}` : "no action";
+  return `<div class="muted" data-testid="world-source" title="cbgo sim reset --seed N or --scene FILE loads another">world: ${esc(cell.name)}'s ${esc(scene)} · ${done} since it started</div>`;
 }
 
 // One line per gesture, and per hand when both hands are seen.
@@ -187,18 +206,25 @@ function drawGestures() {
   $("window-s").textContent = WINDOW_S;
 }
 
-function episodeSpans(t0) {
-  const open = new Map(), out = [];
+// The newest episodes, oldest first: start, end (null while open) and summary once published.
+// The table and the strip show exactly these, so they always count the same episodes. An
+// episode whose end was never seen counts only while it is the newest (the one under way).
+function recentEpisodes() {
+  const byName = new Map();
+  const of = (name) => {
+    if (!byName.has(name)) byName.set(name, { name, t0: null, t1: null, summary: null });
+    return byName.get(name);
+  };
   for (const e of store.events) {
-    if (e.kind === "start") open.set(e.episode, e.ts);
-    if (e.kind === "end" && open.has(e.episode)) {
-      const s = summaryOf(e.episode);
-      out.push({ t0: open.get(e.episode), t1: e.ts, label: s ? leader(s) : e.episode.slice(-4) });
-      open.delete(e.episode);
-    }
+    if (e.kind === "start") of(e.episode).t0 = e.ts;
+    if (e.kind === "end") of(e.episode).t1 = e.ts;
   }
-  for (const [, start] of open) out.push({ t0: start, t1: null, label: "…", open: true });
-  return out.filter((e) => (e.t1 ?? Infinity) >= t0);
+  for (const s of store.summaries) {
+    const ep = of(s.episode);
+    ep.summary = s; ep.t0 ??= s.started; ep.t1 ??= s.ended;
+  }
+  const all = [...byName.values()].filter((ep) => ep.t0 !== null).sort((a, b) => a.t0 - b.t0);
+  return all.filter((ep, k) => ep.t1 !== null || k === all.length - 1).slice(-EPISODES_SHOWN);
 }
 
 function leader(s) {
@@ -206,37 +232,80 @@ function leader(s) {
   return k >= 0 ? `${s.gestures.names[k]} ${pct(s.gestures.probs[k])}` : "—";
 }
 
+function intentCell(intent) {
+  if (!intent) return "—";
+  if (!refused(intent)) return `${esc(call(intent))} <span class="status ${esc(intent.status)}">${esc(intent.status)}</span>`;
+  return `<span class="refused">refused</span> <span class="status ${esc(intent.status)}">${esc(intent.status)}</span>
+    <div class="muted reason">${esc(intent.reason || reasonInWords(intent))}</div>`;
+}
+
+function episodeRow(ep) {
+  const s = ep.summary;
+  if (!s) return `<tr data-episode="${esc(ep.name)}"><td class="mono">${esc(ep.name.slice(-9))}</td>
+    <td colspan="7" class="muted">${ep.t1 === null ? "under way" : "ended; its summary was not seen"}</td></tr>`;
+  const g = s.gestures.names.map((n, i) => [n, s.gestures.probs[i]]).sort((a, b) => b[1] - a[1]).slice(0, 3);
+  const intent = store.intents.findLast((i) => i.episode === s.episode);
+  return `<tr data-episode="${esc(ep.name)}"><td class="mono">${esc(s.episode.slice(-9))}</td><td>${esc(s.user)}</td>
+    <td>${(s.ended - s.started).toFixed(2)} s</td>
+    <td>${g.map(([n, p]) => `${esc(n)} ${p.toFixed(2)}`).join(", ")}</td>
+    <td class="mono">${xyz(s.focus)} ${esc(s.focus_source ?? "")}</td>
+    <td class="mono">${esc(paramsText(s.params))}</td>
+    <td>${s.triggers.map((t) => esc(t.gesture)).join(", ") || "—"}</td>
+    <td>${intentCell(intent)}</td></tr>`;
+}
+
 function drawEpisodes() {
-  const t1 = store.now || Date.now() / 1000, t0 = t1 - EPISODE_WINDOW_S;
-  strip($("chart-episodes"), episodeSpans(t0), t0, t1);
-  if (!store.summaries.length) return placeholder("episodes-body", "no episode yet");
-  const rows = store.summaries.slice(-6).reverse().map((s) => {
-    const g = s.gestures.names.map((n, i) => [n, s.gestures.probs[i]]).sort((a, b) => b[1] - a[1]).slice(0, 3);
-    const intent = store.intents.find((i) => i.episode === s.episode);
-    return `<tr><td class="mono">${esc(s.episode.slice(-9))}</td><td>${esc(s.user)}</td>
-      <td>${(s.ended - s.started).toFixed(2)} s</td>
-      <td>${g.map(([n, p]) => `${esc(n)} ${p.toFixed(2)}`).join(", ")}</td>
-      <td class="mono">${xyz(s.focus)} ${esc(s.focus_source ?? "")}</td>
-      <td class="mono">${esc(JSON.stringify(s.params))}</td>
-      <td>${s.triggers.map((t) => esc(t.gesture)).join(", ") || "—"}</td>
-      <td>${intent ? `${esc(intent.action)}(${esc(intent.object ?? "")}) <span class="status ${esc(intent.status)}">${esc(intent.status)}</span>` : "—"}</td></tr>`;
-  });
+  const episodes = recentEpisodes();
+  const t1 = store.now || Date.now() / 1000;
+  const t0 = Math.min(t1 - EPISODE_WINDOW_S, (episodes[0]?.t0 ?? t1) - 1);
+  strip($("chart-episodes"), episodes.map((ep) => ({ t0: ep.t0, t1: ep.t1, open: ep.t1 === null,
+    label: ep.t1 === null ? "…" : ep.summary ? leader(ep.summary) : ep.name.slice(-4) })), t0, t1);
+  $("chart-episodes").dataset.episodes = episodes.length;
+  if (!episodes.length) return placeholder("episodes-body", "no episode yet");
   $("episodes-body").className = "";
   $("episodes-body").innerHTML = `<table><tr><th>episode</th><th>user</th><th>length</th><th>g (top 3)</th>
-    <th>focus</th><th>params</th><th>triggers</th><th>intent</th></tr>${rows.join("")}</table>`;
+    <th>focus</th><th>params</th><th>triggers</th><th>intent</th></tr>${episodes.slice().reverse().map(episodeRow).join("")}</table>`;
+}
+
+// A counter in at most five characters (10932 -> 10.9k); the exact figures are in the title.
+function count(n) {
+  if (n < 10000) return String(n);
+  return n < 1e6 ? `${Number((n / 1e3).toPrecision(3))}k` : `${Number((n / 1e6).toPrecision(3))}M`;
+}
+
+// An uptime like `cbgo status` prints it: 12s, 4m05s, 3h02m.
+function uptime(seconds) {
+  if (seconds == null) return "—";
+  if (seconds < 60) return `${seconds.toFixed(0)}s`;
+  const m = Math.floor(seconds / 60), h = Math.floor(m / 60);
+  return h ? `${h}h${String(m % 60).padStart(2, "0")}m` : `${m}m${String(Math.floor(seconds % 60)).padStart(2, "0")}s`;
+}
+
+// One row per service; its last error, when it has one, on a row of its own below, across the
+// table, so that it wraps instead of being cut off. `oneHost`: every service runs on it (the
+// header names it once instead of each row).
+function serviceRows(r, oneHost) {
+  const c = r.counters;
+  const where = oneHost ? esc(r.pid ?? "—") : `${esc(r.pid ?? "—")}<wbr>@${esc(r.host ?? "?")}`;
+  const row = `<tr data-service="${esc(r.name)}"><td><span class="dot ${r.alive ? "on" : "off"}"></span>${esc(r.name)}</td>
+    <td class="mono host">${where}</td>
+    <td>${uptime(r.uptime_s)}</td>
+    <td class="mono" title="${c ? `received ${c.received}, published ${c.published}, rejected ${c.rejected}, errors ${c.errors}` : ""}">${c ? [c.received, c.published, c.rejected, c.errors].map(count).join("/<wbr>") : "no status"}</td></tr>`;
+  if (!r.last_error) return row;
+  const when = r.last_error.ts ? new Date(r.last_error.ts * 1000).toLocaleTimeString() + " " : "";
+  return row + `<tr class="last-error" data-error-of="${esc(r.name)}"><td colspan="4" class="err">
+    last error ${esc(when)}${esc(`${r.last_error.where}: ${r.last_error.message}`.slice(0, 400))}</td></tr>`;
 }
 
 function drawServices() {
   const s = store.services;
   if (!s) return placeholder("services-body", info.mode === "live" ? "asking…" : "replay: no live services");
+  const hosts = new Set(s.services.map((r) => r.host).filter(Boolean));
+  const oneHost = hosts.size === 1 ? [...hosts][0] : null;
   $("services-body").className = "";
-  $("services-body").innerHTML = `<table><tr><th>service</th><th>pid@host</th><th>up</th>
-    <th title="received / published / rejected / errors">in/out/rej/err</th><th>last error</th></tr>
-    ${s.services.map((r) => `<tr data-service="${esc(r.name)}"><td><span class="dot ${r.alive ? "on" : "off"}"></span>${esc(r.name)}</td>
-      <td class="mono">${esc(r.pid ?? "—")}@${esc(r.host ?? "?")}</td>
-      <td>${r.uptime_s != null ? `${r.uptime_s.toFixed(0)} s` : "—"}</td>
-      <td class="mono">${r.counters ? [r.counters.received, r.counters.published, r.counters.rejected, r.counters.errors].join("/") : "no status"}</td>
-      <td class="err">${r.last_error ? esc(`${r.last_error.where}: ${r.last_error.message}`).slice(0, 160) : ""}</td></tr>`).join("")}</table>`;
+  $("services-body").innerHTML = `<table class="services"><tr><th>service</th><th>${oneHost ? `pid <span class="muted">@${esc(oneHost)}</span>` : "pid@host"}</th><th>up</th>
+    <th title="received / published / rejected / errors">in/out/rej/err</th></tr>
+    ${s.services.map((r) => serviceRows(r, oneHost)).join("")}</table>`;
 }
 
 // --------------------------------------------------------------------- feedback and STOP
@@ -412,7 +481,7 @@ function draw(now) {
   }
   if (any("intent", "episode/summary", "scene/state")) drawIntent();
   if (any("intent", "episode/summary")) drawFeedback();  // not on scenes: keep the user's choice
-  if (any("plan/status", "robot/state", "scene/state", "robot/stop")) drawPlan();
+  if (any("plan/status", "robot/state", "scene/state", "robot/stop", "@services")) drawPlan();
   if (any("@services")) drawServices();
   if (now - lastCharts > 100) {  // the charts move with time: 10 redraws a second are plenty
     drawGestures(); drawEpisodes(); lastCharts = now;
@@ -424,7 +493,7 @@ async function main() {
   info = await (await fetch("/api/info")).json();
   workspace = { workspace: info.workspace, source: info.source };
   $("mode").textContent = info.mode === "live" ? `live · ${info.prefix}/**` : `replay · ${info.file}`;
-  sceneView = new SceneView($("scene"));
+  sceneView = new SceneView($("scene"), $("scene-labels"));
   sceneView.setWorkspace(info.workspace);
   $("scene-legend").innerHTML = `<i style="background:#39c5cf"></i>left hand<i style="background:#f778ba"></i>right hand
     <i style="background:#ff7b72"></i>gaze<i style="background:#e3b341"></i>focus / pointing ray

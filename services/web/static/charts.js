@@ -92,18 +92,31 @@ export function spans(canvas, items, t0, t1, options = {}) {
   if (!names.length) empty(ctx, f, options.empty || "no window in this time");
 }
 
+// Tick steps of the strip, s: the smallest that leaves at most 8 ticks.
+const STRIP_STEPS = [10, 30, 60, 300, 600, 1800, 3600, 21600, 86400];
+
+// A time before now in the unit of the tick step, so that every tick is exact (-90s, -5m).
+function ago(seconds, step) {
+  if (step < 60) return `${Math.round(seconds)}s`;
+  return step < 3600 ? `${Math.round(seconds / 60)}m` : `${Math.round(seconds / 3600)}h`;
+}
+
 // Episodes on a strip: one bar per episode, labelled with its leading gesture.
 export function strip(canvas, episodes, t0, t1) {
   const ctx = prepare(canvas), f = frame(canvas, t0, t1);
   ctx.fillStyle = "#8893a2"; ctx.font = "10px sans-serif";
-  for (let s = Math.ceil(t0 / 10) * 10; s <= t1; s += 10) ctx.fillText(`${Math.round(s - t1)}s`, f.x(s) - 8, f.H - 2);
+  const step = STRIP_STEPS.find((s) => (t1 - t0) / s <= 8) ?? STRIP_STEPS.at(-1);
+  for (let s = t1; s >= t0; s -= step) {
+    if (s === t1) ctx.fillText("now", f.x(s) - 18, f.H - 2);
+    else ctx.fillText(`-${ago(t1 - s, step)}`, f.x(s) - 8, f.H - 2);
+  }
   for (const e of episodes) {
     const x0 = f.x(Math.max(e.t0, t0)), x1 = f.x(e.t1 ?? t1);
     ctx.fillStyle = e.open ? "#4d3b10" : "#1f3b5a";
     ctx.fillRect(x0, 8, Math.max(2, x1 - x0), f.H - 26);
     ctx.fillStyle = "#dde3ea"; ctx.fillText(e.label, x0 + 2, 22);
   }
-  if (!episodes.length) empty(ctx, f, "no episode in the last minute");
+  if (!episodes.length) empty(ctx, f, "no episode yet");
 }
 
 function markers(ctx, f, items) {

@@ -1,7 +1,8 @@
 // The 3D scene in the robot base frame (metres, +z up; the user stands at +x facing -x):
 // workspace grid, table area, objects, TCP and gripper, hand skeletons (already in the base
 // frame: the server applies each frame's to_base), gaze point, episode focus, pointing ray,
-// and the intent's target highlighted.
+// and the intent's target highlighted. Labels are HTML over the canvas, laid out after each
+// render so that no two overlap (`layOutLabels`).
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/OrbitControls.js";
 
@@ -10,8 +11,10 @@ const OBJECT_COLOURS = { cup: 0x58a6ff, box: 0xd29922, drawer: 0x8b949e };
 const TARGET = 0xffe066;
 
 export class SceneView {
-  constructor(canvas) {
+  // canvas: the WebGL canvas; labelLayer: an element stacked over it, of the same size.
+  constructor(canvas, labelLayer) {
     this.canvas = canvas;
+    this.labelLayer = labelLayer;
     this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true });
     this.renderer.setPixelRatio(window.devicePixelRatio || 1);
     this.scene = new THREE.Scene();
@@ -86,13 +89,13 @@ export class SceneView {
     for (const hand of s.hands?.hands || []) this.addHand(hand, s.pointing);
     if (s.gaze) {
       this.dynamic.add(sphere(s.gaze.point, 0.012, 0xff7b72));
-      this.dynamic.add(label(`gaze (${s.gaze.source})`, add(s.gaze.point, [0, -0.07, 0.09]), "#ff7b72"));
+      this.dynamic.add(label(`gaze (${s.gaze.source})`, add(s.gaze.point, [0, 0, 0.02]), "#ff7b72"));
     }
     if (s.focus) {
       const ring = new THREE.Mesh(new THREE.TorusGeometry(0.03, 0.003, 8, 32),
         new THREE.MeshBasicMaterial({ color: 0xe3b341 }));
       ring.position.set(...s.focus);
-      this.dynamic.add(ring, label("focus", add(s.focus, [0, -0.06, -0.02]), "#e3b341"));
+      this.dynamic.add(ring, label("focus", add(s.focus, [0, 0, 0.035]), "#e3b341"));
     }
   }
 
@@ -107,7 +110,7 @@ export class SceneView {
       this.dynamic.add(finger);
     }
     this.dynamic.add(sphere(tcp, 0.008, 0x3fb950));
-    this.dynamic.add(label(`TCP ${(width * 1000).toFixed(0)} mm`, add(tcp, [0, 0.06, 0.13]), "#3fb950"));
+    this.dynamic.add(label(`TCP ${(width * 1000).toFixed(0)} mm`, add(tcp, [0, 0, 0.07]), "#3fb950"));
   }
 
   addHand(hand, pointing) {
@@ -120,7 +123,7 @@ export class SceneView {
     for (let f = 1; f < 4; f++) lines.push(hand.fingers[f][1], hand.fingers[f + 1][1]);
     this.dynamic.add(segments(lines, colour));
     this.dynamic.add(sphere(hand.palm, 0.01, colour));
-    this.dynamic.add(label(`${hand.side} hand`, add(hand.palm, [0, 0, 0.06]), "#" + colour.toString(16)));
+    this.dynamic.add(label(`${hand.side} hand`, add(hand.palm, [0, 0, 0.04]), "#" + colour.toString(16).padStart(6, "0")));
     if (pointing) this.addRay(hand);
   }
 
@@ -144,8 +147,48 @@ export class SceneView {
     }
     if (!this.changed) return;
     this.renderer.render(this.scene, this.camera);
+    this.layOutLabels(w, h);
     this.changed = false;
   }
+
+  // Every label's anchor projected onto the canvas; the label sits centred above its anchor,
+  // unless another label is there already: then it moves up above that one. The lowest labels
+  // are placed first, so a label only ever moves up, past each label it would cover once.
+  layOutLabels(width, height) {
+    const anchors = [];
+    this.scene.updateMatrixWorld();
+    this.scene.traverse((o) => { if (o.userData.label) anchors.push(o); });
+    const point = new THREE.Vector3();
+    const items = [];
+    for (const anchor of anchors) {
+      anchor.getWorldPosition(point).project(this.camera);
+      if (point.z < -1 || point.z > 1) continue;  // behind the camera or past its far plane
+      items.push({ ...anchor.userData.label, x: (point.x + 1) / 2 * width, y: (1 - point.y) / 2 * height });
+    }
+    const layer = this.labelLayer;
+    while (layer.children.length < items.length) layer.append(document.createElement("span"));
+    while (layer.children.length > items.length) layer.lastChild.remove();
+    items.forEach((item, k) => {
+      const el = layer.children[k];
+      if (el.textContent !== item.text) el.textContent = item.text;
+      el.style.color = item.colour;
+    });
+    const sizes = items.map((_, k) => [layer.children[k].offsetWidth, layer.children[k].offsetHeight]);
+    const placed = [];
+    for (const k of items.map((_, k) => k).sort((a, b) => items[b].y - items[a].y)) {
+      const [w, h] = sizes[k];
+      const box = { left: items[k].x - w / 2, top: items[k].y - h, width: w, height: h };
+      for (let hit = placed.find((p) => overlap(p, box)); hit; hit = placed.find((p) => overlap(p, box)))
+        box.top = hit.top - h - 1;
+      placed.push(box);
+      layer.children[k].style.transform = `translate(${Math.round(box.left)}px, ${Math.round(box.top)}px)`;
+    }
+  }
+}
+
+function overlap(a, b) {
+  return a.left < b.left + b.width && b.left < a.left + a.width &&
+    a.top < b.top + b.height && b.top < a.top + a.height;
 }
 
 function objectMesh(obj, isTarget) {
@@ -190,7 +233,7 @@ function objectMesh(obj, isTarget) {
   return group;
 }
 
-// Empties a group and frees its GPU buffers (label textures are cached and kept).
+// Empties a group and frees its GPU buffers.
 function release(group) {
   group.traverse((o) => { o.geometry?.dispose(); o.material?.dispose(); });
   group.clear();
@@ -219,24 +262,10 @@ function rectangle(xs, ys, z, colour) {
     [x0, y1, z], [x0, y0, z]], colour);
 }
 
-const labels = new Map();  // text+colour -> texture, so a label redrawn every frame is cheap
-
+// A label: an invisible point in the scene that `layOutLabels` puts an HTML label on.
 function label(text, position, colour) {
-  const key = text + colour;
-  if (!labels.has(key)) {
-    const canvas = document.createElement("canvas");
-    const ctx = canvas.getContext("2d");
-    ctx.font = "28px sans-serif";
-    canvas.width = Math.ceil(ctx.measureText(text).width) + 8; canvas.height = 36;
-    ctx.font = "28px sans-serif"; ctx.fillStyle = colour; ctx.fillText(text, 4, 28);
-    const texture = new THREE.CanvasTexture(canvas);
-    texture.colorSpace = THREE.SRGBColorSpace;
-    labels.set(key, { texture, aspect: canvas.width / canvas.height });
-    if (labels.size > 500) labels.delete(labels.keys().next().value);
-  }
-  const { texture, aspect } = labels.get(key);
-  const sprite = new THREE.Sprite(new THREE.SpriteMaterial({ map: texture, depthTest: false }));
-  sprite.scale.set(0.03 * aspect, 0.03, 1);
-  sprite.position.set(...position);
-  return sprite;
+  const anchor = new THREE.Object3D();
+  anchor.position.set(...position);
+  anchor.userData.label = { text, colour };
+  return anchor;
 }

@@ -279,7 +279,9 @@ def run(args: argparse.Namespace) -> int:
     except CertError as e:
         fail(str(e), 2)
     except OSError as e:
-        fail(f"cannot write to {args.directory}: {e}", 2)
+        where = f" ({e.filename})" if e.filename and str(e.filename) != str(args.directory) else ""
+        fail(f"cannot write to {args.directory}{where}: {e.strerror or e}; choose a directory "
+             "you can write to", 2)
     print(f"copy {args.directory}/<name>/ to the machine that runs <name>; keep "
           f"{args.directory}/ca/ca.key off the service hosts")
     return 0

@@ -8,27 +8,30 @@ the flags are `cbgo.client`'s; this module turns its errors into a message and a
 from __future__ import annotations
 
 import argparse
+import difflib
 import importlib
 import json
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from cbgo.client import ConnectError, add_network_arguments, connect
-from cbgo.errors import ConfigError
-from cbgo.keys import Keys
+from cbgo.config import resolve_zenoh
+from cbgo.errors import ConfigError, zenoh_reason
+from cbgo.keys import TOPICS, Keys
 
-__all__ = ["add_network_arguments", "fail", "offline_registry", "read_json_argument", "run_module",
-           "session"]
+__all__ = ["add_network_arguments", "did_you_mean", "fail", "key_expression", "keys_of",
+           "listened_key", "offline_registry", "read_json_argument", "run_module", "session",
+           "unknown_key_note"]
 
 OFFLINE_TOOLS = ("the offline tools (benchmarks, trainers, data-set converters) are not installed: "
                  "they live in a cbgo checkout's tools/ folder, outside the cbgo wheel; from the "
                  "checkout, `pip install -e tools/` (`make install` does)")
 
 
-def fail(message: str, code: int = 1) -> None:
+def fail(message: str, code: int = 1) -> NoReturn:
     """Prints an error for the user and exits."""
     print(f"cbgo: {message}", file=sys.stderr)
     sys.exit(code)
@@ -78,15 +81,85 @@ def session(args: argparse.Namespace, name: str = "cbgo-cli") -> Iterator[tuple[
 
 
 def read_json_argument(text: str) -> Any:
-    """Returns the JSON value of an argument: inline JSON, ``@file.json``, or ``-`` (stdin)."""
+    """Returns the JSON value of an argument: inline JSON, ``@file.json``, or ``-`` (stdin).
+
+    Unreadable files and malformed JSON end the command (exit code 2) with where the problem
+    is and how to write it.
+    """
+    source = "the argument"
     if text == "-":
-        text = sys.stdin.read()
+        text, source = sys.stdin.read(), "stdin"
     elif text.startswith("@"):
+        source = text[1:]
         try:
-            text = Path(text[1:]).read_text()
+            text = Path(source).read_text()
         except OSError as e:
-            fail(f"cannot read {text[1:]}: {e}", 2)
+            fail(f"cannot read {source}: {e.strerror or e}", 2)
     try:
         return json.loads(text)
     except json.JSONDecodeError as e:
-        fail(f"not valid JSON ({e}): {text[:80]!r}", 2)
+        where = f"line {e.lineno}, column {e.colno}" if "\n" in text.strip() else \
+            f"column {e.colno}"
+        shown = f": {text.strip()[:80]!r}" if source == "the argument" else ""
+        fail(f"{source} is not valid JSON ({e.msg} at {where}){shown}; JSON needs double "
+             "quotes, e.g. '{\"user\": \"alice\"}' (and single quotes around it in a shell)",
+             2)
+
+
+def keys_of(args: argparse.Namespace) -> Keys:
+    """Returns the keys under the prefix of the flags and environment, without connecting.
+
+    Lets a verb check what the user typed before it waits for the network.
+    """
+    try:
+        return Keys(resolve_zenoh(vars(args)).prefix)
+    except ConfigError as e:
+        fail(f"configuration error: {e}", 2)
+
+
+def key_expression(keys: Keys, typed: str) -> str:
+    """Returns a typed key as a canonical key expression under the prefix, or ends the command.
+
+    ``hands/frame`` becomes ``cbgo/hands/frame``; ``a//b`` is refused (exit code 2) with
+    Zenoh's reason and the form keys have.
+    """
+    import zenoh
+
+    try:
+        return str(zenoh.KeyExpr.autocanonize(keys.resolve(typed)))
+    except zenoh.ZError as e:
+        fail(f"invalid key {typed!r}: {zenoh_reason(e)}; keys look like hands/frame or "
+             "'gestures/*' (`cbgo ls` lists the keys in use)", 2)
+
+
+def listened_key(args: argparse.Namespace) -> tuple[Keys, str]:
+    """Returns (keys, key expression) of the KEY a verb listens on, checked before connecting.
+
+    A concrete key under the prefix that no contract key matches is not an error (anything
+    may be published), but a likely typo: a note on stderr says so, with the closest key.
+    """
+    keys = keys_of(args)
+    key = key_expression(keys, args.key)
+    note = unknown_key_note(keys, key)
+    if note:
+        print(f"cbgo: note: {note}", file=sys.stderr)
+    return keys, key
+
+
+def did_you_mean(typed: str, known: Iterable[str]) -> str:
+    """Returns `` (did you mean X?)`` for the known name closest to a typo, or ``""``."""
+    close = difflib.get_close_matches(typed, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]}?)" if close else ""
+
+
+def unknown_key_note(keys: Keys, key: str) -> str | None:
+    """Returns a note when a concrete key under the prefix is none of the contract's keys.
+
+    Wildcards, control keys and keys outside the prefix are not judged (None).
+    """
+    head = keys.prefix + "/"
+    if not key.startswith(head) or "*" in key or "/@" in key or keys.topic_of(key):
+        return None
+    suffix = key[len(head):]
+    return (f"{key} is not one of the contract's keys{did_you_mean(suffix, TOPICS)}; "
+            "`cbgo ls` lists the keys in use")

@@ -20,7 +20,7 @@ import sys
 import time
 
 from cbgo import wire
-from cbgo.cli.common import add_network_arguments, session
+from cbgo.cli.common import add_network_arguments, listened_key, session
 from cbgo.codec import jsonable, pretty, unpack_any
 from cbgo.errors import RejectedMessage
 
@@ -53,8 +53,8 @@ def check(keys, key: str, message) -> str | None:
 def run(args: argparse.Namespace) -> int:
     """Subscribes and prints until --count, --timeout or Ctrl-C."""
     inbox: queue.Queue = queue.Queue()
-    with session(args, "cbgo-echo") as (sess, keys):
-        key = keys.resolve(args.key)
+    keys, key = listened_key(args)
+    with session(args, "cbgo-echo") as (sess, _):
         sess.declare_subscriber(key, lambda s: inbox.put((str(s.key_expr),
                                                           s.payload.to_bytes(), time.time())))
         print(f"listening on {key}", file=sys.stderr)

@@ -3,7 +3,7 @@
 Publishes ``cbgo/intent/feedback``. Unless ``--episode`` and ``--user`` are both given, the
 intent service is asked for its last intent (control verb ``@ctl/intent/last``, of ``--user``
 if given) and that one is corrected. The intent service stores the correction for that user and
-refits the user's model (see services/intent/README.md, "Personalisation").
+refits the user's model (see docs/design/intent.md, "Personalisation").
 
 Examples::
 

@@ -19,7 +19,14 @@ import json
 import sys
 
 from cbgo import client, wire
-from cbgo.cli.common import add_network_arguments, read_json_argument, session
+from cbgo.cli.common import (
+    add_network_arguments,
+    key_expression,
+    keys_of,
+    read_json_argument,
+    session,
+    unknown_key_note,
+)
 from cbgo.codec import jsonable, pretty, unpack_any
 from cbgo.errors import RejectedMessage
 
@@ -47,28 +54,39 @@ def decode_reply(payload: bytes):
 
 def run(args: argparse.Namespace) -> int:
     """Queries and prints; returns 0 if any reply was ok, 1 otherwise."""
-    with session(args, "cbgo-get") as (sess, keys):
-        selector = keys.resolve(args.selector)
-        payload = None
-        if args.payload is not None:
-            message = read_json_argument(args.payload)
-            topic = keys.topic_of(selector)
-            if topic is not None and topic.query_schema is not None:
-                try:
-                    wire.validate(message, topic.query_schema, selector)
-                except RejectedMessage as e:
-                    print(f"cbgo: warning: the query breaks the contract: {e}", file=sys.stderr)
-            payload = wire.encode(message)
-        ok = 0
+    keys = keys_of(args)  # what was typed is checked before the network is waited for
+    selector = _selector(keys, args.selector)
+    payload = None
+    if args.payload is not None:
+        message = read_json_argument(args.payload)
+        topic = keys.topic_of(selector)
+        if topic is not None and topic.query_schema is not None:
+            try:
+                wire.validate(message, topic.query_schema, selector)
+            except RejectedMessage as e:
+                print(f"cbgo: warning: the query breaks the contract: {e}", file=sys.stderr)
+        payload = wire.encode(message)
+    ok = errors = 0
+    with session(args, "cbgo-get") as (sess, _):
         for reply in client.replies(sess, selector, payload, args.timeout):
             if reply.ok:
                 ok += 1
                 _print_ok(reply.key, decode_reply(reply.payload), args.json)
             else:
+                errors += 1
                 print(f"error: {reply.text}", file=sys.stderr)
-    if not ok:
-        print(f"no successful reply on {selector}", file=sys.stderr)
+    if not ok and not errors:
+        note = unknown_key_note(keys, selector.split("?", 1)[0])
+        print(f"no reply on {selector} within {args.timeout:g} s"
+              + (f"; {note}" if note else "; is the service that answers it up? (`cbgo ls`)"),
+              file=sys.stderr)
     return 0 if ok else 1
+
+
+def _selector(keys, typed: str) -> str:
+    """Returns the full selector: its key expression checked, its parameters (``?...``) kept."""
+    key, sep, parameters = typed.partition("?")
+    return key_expression(keys, key) + sep + parameters
 
 
 def _print_ok(key: str, value, as_json: bool) -> None:

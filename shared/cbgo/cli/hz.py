@@ -20,7 +20,7 @@ from collections import defaultdict, deque
 
 import numpy as np
 
-from cbgo.cli.common import add_network_arguments, session
+from cbgo.cli.common import add_network_arguments, listened_key, session
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -79,8 +79,9 @@ def run(args: argparse.Namespace) -> int:
         with lock:
             meters[str(sample.key_expr)].add(time.perf_counter(), len(sample.payload))
 
-    with session(args, "cbgo-hz") as (sess, keys):
-        sess.declare_subscriber(keys.resolve(args.key), on_sample)
+    _, key = listened_key(args)
+    with session(args, "cbgo-hz") as (sess, _):
+        sess.declare_subscriber(key, on_sample)
         end = time.monotonic() + args.duration if args.duration else None
         while end is None or time.monotonic() < end:
             time.sleep(min(1.0, max(0.0, end - time.monotonic())) if end else 1.0)

@@ -16,9 +16,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 import cbgo
+from cbgo.errors import zenoh_reason
 
 # verb -> module in cbgo.cli; each module has add_arguments(parser) and run(args) -> int.
 VERBS = {
@@ -93,6 +95,15 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(args.run(args))
     except KeyboardInterrupt:
         sys.exit(130)
+    except BrokenPipeError:  # `cbgo echo ... | head`: the reader left; nothing more to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        sys.exit(141)
+    except Exception as e:
+        # A Zenoh error the verb did not foresee: its message, without Zenoh's Rust source path.
+        if type(e).__module__ != "zenoh":
+            raise
+        print(f"cbgo: {args.verb}: Zenoh refused: {zenoh_reason(e)}", file=sys.stderr)
+        sys.exit(1)
 
 
 if __name__ == "__main__":

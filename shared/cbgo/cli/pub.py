@@ -4,8 +4,10 @@ KEY is relative to the prefix unless it starts with it. The message is JSON, ``@
 ``-`` (stdin); ``--example`` publishes the contract's example message for that key instead.
 ``--stamp`` fills in ``v`` (if missing), ``ts`` (now) and, for streams, ``seq``.
 A message that breaks the contract is refused unless ``--force`` (to test how services reject
-bad input). The put waits up to ``--wait`` seconds for a subscriber, since a put made before
-any subscriber is known is lost.
+bad input); the refusal names the field at fault and the fix (``--stamp`` when only ``v``,
+``ts`` or ``seq`` is missing). The message is checked before the network is waited for. The
+put waits up to ``--wait`` seconds for a subscriber, since a put made before any subscriber is
+known is lost.
 
 Examples::
 
@@ -22,8 +24,18 @@ import sys
 import time
 
 from cbgo import client, examples, wire
-from cbgo.cli.common import add_network_arguments, fail, read_json_argument, session
+from cbgo.cli.common import (
+    add_network_arguments,
+    fail,
+    key_expression,
+    keys_of,
+    read_json_argument,
+    session,
+    unknown_key_note,
+)
 from cbgo.errors import RejectedMessage
+
+STAMPED_FIELDS = ("v", "ts", "seq")  # what --stamp fills in
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -62,25 +74,51 @@ def _stamped(message: dict, seq: int, stream: bool) -> dict:
     return out
 
 
-def _check(message, spec, key: str, force: bool) -> None:
+def _problem(message, spec, key: str) -> RejectedMessage | None:
     try:
         wire.validate(message, spec, key)
     except RejectedMessage as e:
-        if not force:
-            fail(f"refusing to publish: {e} (use --force to send it anyway)", 2)
-        print(f"cbgo: warning: publishing a message that breaks the contract: {e}",
+        return e
+    return None
+
+
+def _check(message, spec, key: str, args: argparse.Namespace, stream: bool) -> None:
+    """Refuses a message that breaks the contract (unless --force), naming the fix.
+
+    A message that lacks only what --stamp fills in is told to add --stamp; otherwise the
+    field at fault is named, with the contract's example (``--example``).
+    """
+    sent = _stamped(message, 0, stream) if args.stamp else message
+    problem = _problem(sent, spec, key)
+    if problem is None:
+        return
+    if args.force:
+        print(f"cbgo: warning: publishing a message that breaks the contract: {problem}",
               file=sys.stderr)
+        return
+    if not args.stamp and problem.path in STAMPED_FIELDS and isinstance(message, dict):
+        stamped = _problem(_stamped(message, 0, stream), spec, key)
+        if stamped is None:
+            fail(f"refusing to publish: {problem}; add --stamp to fill in v, ts and seq", 2)
+        problem = stamped
+    fail(f"refusing to publish: {problem}. The contract's example: `cbgo pub {args.key} "
+         f"--example`{'' if args.stamp else ' (with --stamp for v, ts and seq)'}; --force "
+         "sends it anyway, to test how services reject it", 2)
 
 
 def run(args: argparse.Namespace) -> int:
     """Validates and publishes; returns 0, or 2 for a refused message."""
-    with session(args, "cbgo-pub") as (sess, keys):
-        key = keys.resolve(args.key)
-        topic = keys.topic_of(key)
-        base = _message(args, topic.suffix if topic else None)
-        spec = topic.schema if topic else None
-        stream = spec is not None and hasattr(spec, "fields") and "seq" in spec.fields
-        _check(_stamped(base, 0, stream) if args.stamp else base, spec, key, args.force)
+    keys = keys_of(args)  # the message is checked before the network is waited for
+    key = key_expression(keys, args.key)
+    topic = keys.topic_of(key)
+    base = _message(args, topic.suffix if topic else None)
+    spec = topic.schema if topic else None
+    stream = spec is not None and hasattr(spec, "fields") and "seq" in spec.fields
+    _check(base, spec, key, args, stream)
+    note = unknown_key_note(keys, key)
+    if note:
+        print(f"cbgo: warning: {note}; publishing it unchecked", file=sys.stderr)
+    with session(args, "cbgo-pub") as (sess, _):
         pub = sess.declare_publisher(key)
         if not client.wait_matched(pub, timeout_s=args.wait):
             print(f"cbgo: warning: no subscriber on {key}; publishing anyway", file=sys.stderr)

@@ -30,7 +30,7 @@ import threading
 import time
 from pathlib import Path
 
-from cbgo.cli.common import add_network_arguments, fail, session
+from cbgo.cli.common import add_network_arguments, fail, key_expression, keys_of, session
 from cbgo.errors import RecordingError
 from cbgo.foxglove.derive import DERIVED_TOPICS
 from cbgo.recording import COMPRESSIONS, ENCODINGS, KeyFilter, Recorder
@@ -101,25 +101,13 @@ def _check_output(args: argparse.Namespace) -> Path:
     return path
 
 
-def _key_exprs(keys, typed: list[str]) -> list[str]:
-    """Returns the typed keys as canonical key expressions under the prefix, or fails."""
-    import zenoh
-
-    out = []
-    for key in typed:
-        try:
-            out.append(str(zenoh.KeyExpr.autocanonize(keys.resolve(key))))
-        except zenoh.ZError as e:
-            fail(f"invalid key expression {key!r}: {str(e).split(' at /', 1)[0]}", 2)
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
     """Subscribes, records until --duration, --count, Ctrl-C or SIGTERM, closes the file."""
     path = _check_output(args)
+    keys = keys_of(args)  # what was typed is checked before the network is waited for
+    exprs = [key_expression(keys, key) for key in args.keys]
     stop = threading.Event()
-    with session(args, "cbgo-record") as (sess, keys):
-        exprs = _key_exprs(keys, args.keys)
+    with session(args, "cbgo-record") as (sess, _):
         try:
             recorder = Recorder(path, prefix=keys.prefix, keys=exprs,
                                 compression=args.compression, encoding=args.encoding)

@@ -54,7 +54,7 @@ def _query(args: argparse.Namespace, topic, message: dict) -> dict:
     with session(args, "cbgo-sim") as (sess, k):
         try:
             return client.query(sess, k.of(topic), message, timeout_s=args.timeout,
-                                hint="is mujoco-sim up? `cbgo up mujoco-sim`")
+                                hint="is a robot up? `cbgo up mujoco-sim` or `cbgo up dry-robot`")
         except QueryError as e:
             fail(str(e))
     raise AssertionError("unreachable")
@@ -103,7 +103,8 @@ def run(args: argparse.Namespace) -> int:
             fail("--params must be a JSON object", 2)
         reply = _query(args, keys.ROBOT_ACT, keys.ROBOT_ACT.message(action=args.action,
                                               object=args.object, params=params))
-    _print(reply, args.json)
-    if not reply["ok"]:
+    if reply["ok"] or args.json:
+        _print(reply, args.json)
+    if not reply["ok"]:  # the world did not change: the reason is the news, not the scene
         print(f"cbgo: {reply['error']}", file=sys.stderr)
     return 0 if reply["ok"] else 1

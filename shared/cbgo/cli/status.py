@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from cbgo import client
-from cbgo.cli.common import add_network_arguments, session
+from cbgo.cli.common import add_network_arguments, did_you_mean, session
 from cbgo.codec import jsonable, pretty
 
 
@@ -52,13 +53,34 @@ HEADER = (f"{'SERVICE':<16} {'HOST':<14} {'PID':>7} {'UPTIME':>8} {'RECEIVED':>9
           f"{'PUBLISHED':>9} {'REJECTED':>8} {'ERRORS':>6}  LAST ERROR")
 
 
+def no_answer(service: str, key: str, live: list[str]) -> str:
+    """Returns why nothing answered a status query, and what to run instead.
+
+    Args:
+        service: the name asked for (``*``: all).
+        key: the status key that was queried.
+        live: the services whose liveliness token is present.
+    """
+    if not live:
+        return (f"no service answered {key}, and none is alive under this prefix: start them "
+                "with `cbgo up` (or check --prefix and --connect)")
+    if service == "*":
+        return f"no service answered {key}; alive: {', '.join(live)} (are they busy?)"
+    if service in live:
+        return f"{service} is alive but did not answer {key}; try a longer --timeout"
+    return (f"no service named {service!r} is alive{did_you_mean(service, live)}; alive: "
+            f"{', '.join(live)} (`cbgo ls` lists them with their keys)")
+
+
 def run(args: argparse.Namespace) -> int:
     """Prints the status(es); returns 1 if no service answered."""
     with session(args, "cbgo-status") as (sess, keys):
         statuses = client.status(sess, keys, args.service, args.timeout)
-    if not statuses:
-        print(f"no service answered {keys.ctl(args.service, 'status')}")
-        return 1
+        if not statuses:
+            live = sorted(client.alive(sess, keys, 1.0))
+            print(f"cbgo: {no_answer(args.service, keys.ctl(args.service, 'status'), live)}",
+                  file=sys.stderr)
+            return 1
     if args.json:
         for status in statuses.values():
             print(json.dumps(jsonable(status)))

@@ -15,7 +15,7 @@ import sys
 import time
 
 from cbgo import client
-from cbgo.cli.common import add_network_arguments, session
+from cbgo.cli.common import add_network_arguments, did_you_mean, session
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,11 +31,14 @@ def run(args: argparse.Namespace) -> int:
     deadline = time.monotonic() + args.timeout
     with session(args, "cbgo-wait-alive") as (sess, keys):
         while True:
-            missing = set(args.services) - client.alive(sess, keys, 0.5)
+            alive = client.alive(sess, keys, 0.5)
+            missing = set(args.services) - alive
             if not missing:
                 return 0
             if time.monotonic() > deadline:
-                print(f"not alive after {args.timeout:g} s: {', '.join(sorted(missing))}",
+                hints = "".join(did_you_mean(name, alive) for name in sorted(missing))
+                print(f"not alive after {args.timeout:g} s: {', '.join(sorted(missing))}{hints}; "
+                      f"alive: {', '.join(sorted(alive)) or 'none (is `cbgo up` running?)'}",
                       file=sys.stderr)
                 return 1
             time.sleep(0.1)

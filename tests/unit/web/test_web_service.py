@@ -113,3 +113,14 @@ def test_stopping_with_a_page_connected_takes_well_under_two_seconds():
             return time.monotonic() - t0
 
     assert asyncio.run(connected_then_stopped()) < 1.5
+
+
+def test_a_robot_cells_status_gives_the_page_its_worlds_source_and_action_count():
+    from cbgo.services.web.main import robot_cell_view
+
+    status = {"name": "dry-robot", "scene_source": "seed 0",
+              "actions": {"actions": 3, "ok": 2, "refused": 1, "stopped": 0}}
+    assert robot_cell_view(status) == {"scene_source": "seed 0", "actions": 3}
+    assert robot_cell_view({"name": "episode", "counters": {}}) == {}
+    assert robot_cell_view({"scene_source": "scene", "actions": "bad"}) == {
+        "scene_source": "scene", "actions": None}
