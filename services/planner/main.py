@@ -1,6 +1,8 @@
 """planner: executes each accepted intent as a behaviour tree that repairs missing preconditions.
 
 Behaviour (the contract is services/planner/README.md):
+- an intent or a scene marked ``replayed: true`` (sent by ``cbgo replay``) is refused, counted
+  and logged, unless ``--accept-replayed``: a recording must not move the robot by accident;
 - ``cbgo/intent`` with status ``accepted`` is queued (others are counted and ignored); intents run
   one after the other, never preempting: a new intent waits until the running one ends (at most
   ``queue_size`` wait; beyond, the oldest waiting one is dropped with a failure status);
@@ -29,11 +31,13 @@ from dataclasses import dataclass, field
 from cbgo import keys
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
+from cbgo.logs import RateLimited
 from cbgo.runtime import Context, Service, main_for
 from cbgo.services.planner.plan import Plan
 from cbgo.services.planner.scenes import SceneSource
 
 FRESH_SCENE_S = 1.0  # how long an intent waits for a scene newer than itself
+REPLAYED = "replayed"  # the mark `cbgo replay` puts on every message (docs/protocol.md)
 
 
 @dataclass
@@ -53,6 +57,9 @@ class PlannerSettings:
     check_first: bool = field(default=True, metadata=_help(
         "simulate each plan on the world model first; fail at once, without moving, if the "
         "model says it cannot succeed"))
+    accept_replayed: bool = field(default=False, metadata=_help(
+        "execute intents (and plan on scenes) marked replayed: true by `cbgo replay`; off, "
+        "they are refused, counted in status plans.refused_replayed and logged"))
 
     def __post_init__(self):
         if not 1.0 <= self.tick_hz <= 200.0:
@@ -171,7 +178,7 @@ class Planner(Service):
         self.scenes = SceneSource()
         self.plan: Plan | None = None
         self.counts = {"ignored": 0, "accepted": 0, "dropped": 0, "succeeded": 0, "failed": 0,
-                       "stopped": 0}
+                       "stopped": 0, "refused_replayed": 0}
         self._waiting: deque[dict] = deque()
         self._lock = threading.Lock()  # `_waiting` and `_stop`: robot/stop is on Zenoh's thread
         self._stop: str | None = None
@@ -182,6 +189,7 @@ class Planner(Service):
     def setup(self, ctx: Context) -> None:
         """Called once before the service is announced alive: declares inputs, output, timer."""
         self.ctx = ctx
+        self.replay_log = RateLimited(ctx.log)
         self.robot = RobotClient(ctx, self.settings.act_timeout_s, self.inline_queries)
         ctx.subscribe(keys.INTENT, self.on_intent)
         ctx.subscribe(keys.SCENE_STATE, self.on_scene)
@@ -192,11 +200,13 @@ class Planner(Service):
     # ------------------------------------------------------------ inputs
 
     def on_intent(self, msg: dict):
-        """Queues an accepted intent; counts and ignores the others."""
+        """Queues an accepted intent; counts and ignores the others, refuses replayed ones."""
         if msg["status"] != "accepted":
             self.counts["ignored"] += 1
             self.ctx.log.debug("ignoring a %s intent (%s %s)", msg["status"], msg["action"],
                               msg["object"])
+            return None
+        if self._refused_as_replayed(msg, "intent", f"intent {msg['action']}({msg['object']})"):
             return None
         self.counts["accepted"] += 1
         with self._lock:
@@ -213,10 +223,26 @@ class Planner(Service):
 
     def on_scene(self, msg: dict):
         """Keeps the newest scene (set aside while a primitive runs); may start a waiting plan."""
+        if self._refused_as_replayed(msg, "scene", "scene"):
+            return None
         self.scenes.observe(msg)
         if self.plan is None and self._waiting:
             return self._advance(count_wait=False)
         return None
+
+    def _refused_as_replayed(self, msg: dict, kind: str, what: str) -> bool:
+        """Whether a message comes from a replay the planner must not act on (counted, logged).
+
+        A replayed intent is a past decision, a replayed scene a past world: executing one, or
+        planning on the other, moves the robot for what no one asked for now.
+        """
+        if msg.get(REPLAYED) is not True or self.settings.accept_replayed:
+            return False
+        self.counts["refused_replayed"] += 1
+        self.replay_log.warning(kind, f"refused a replayed {what} (replayed: true, from `cbgo "
+                                "replay`); start the planner with --accept-replayed to act on "
+                                "replayed messages")
+        return True
 
     def on_stop(self, msg: dict) -> None:
         """Called at once on Zenoh's thread: no primitive goes out from now; aborts next tick."""

@@ -32,7 +32,9 @@ from cbgo.wire import DEFAULT_MAX_BYTES
 
 DEFAULT_PORT = 7447
 DEFAULT_CONNECT = f"tcp/127.0.0.1:{DEFAULT_PORT}"
-DEFAULT_ROUTER_LISTEN = f"tcp/0.0.0.0:{DEFAULT_PORT}"
+# Loopback: a router reachable from other hosts is a decision (`--listen tcp/0.0.0.0:7447`),
+# since anyone who reaches it may publish robot/act; the process warns when it listens so.
+DEFAULT_ROUTER_LISTEN = f"tcp/127.0.0.1:{DEFAULT_PORT}"
 MODES = ("client", "peer", "router")
 LOG_LEVELS = ("debug", "info", "warning", "error")
 LOG_FORMATS = ("text", "json")
@@ -220,7 +222,8 @@ def settings_rows(cls: type, prefix: str = "") -> list[SettingRow]:
 
 
 def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, title: str,
-                            shown_defaults: dict | None = None, prefix: str = "") -> None:
+                            shown_defaults: dict | None = None, prefix: str = "",
+                            skip: tuple[str, ...] = ()) -> None:
     """Adds one ``--field-name`` flag per dataclass field (``--group.field-name`` in a group).
 
     Flags default to SUPPRESS, so unset flags do not override lower layers.
@@ -231,11 +234,14 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, title: s
         title: the heading of the flags in --help.
         shown_defaults: defaults to show instead of the dataclass's (a router's listen).
         prefix: the group's name and a dot, for a group of settings (see `_layer`).
+        skip: fields that get no flag here (the command defines that flag its own way).
     """
     group = parser.add_argument_group(title)
     hints = _resolve_hints(cls)
     for f in dataclasses.fields(cls):
         tp, name = hints[f.name], prefix + f.name
+        if f.name in skip:
+            continue
         if _is_group(tp):
             add_dataclass_arguments(parser, _base_type(tp)[0], f"{title}: {f.name}.*",
                                     prefix=name + ".")
@@ -263,10 +269,13 @@ def _default(f: dataclasses.Field) -> Any:
     return f.default_factory() if f.default_factory is not dataclasses.MISSING else None
 
 
-def add_zenoh_arguments(parser: argparse.ArgumentParser, shown_defaults: dict | None = None
-                        ) -> None:
-    """Adds the Zenoh flags: --connect, --listen, --mode, --config, --cfg, --prefix, --scouting."""
-    add_dataclass_arguments(parser, ZenohOptions, "Zenoh", shown_defaults)
+def add_zenoh_arguments(parser: argparse.ArgumentParser, shown_defaults: dict | None = None,
+                        skip: tuple[str, ...] = ()) -> None:
+    """Adds the Zenoh flags: --connect, --listen, --mode, --config, --cfg, --prefix, --scouting.
+
+    `skip` names the ones a command defines its own way (`cbgo up`'s --listen is its router's).
+    """
+    add_dataclass_arguments(parser, ZenohOptions, "Zenoh", shown_defaults, skip=skip)
 
 
 def read_settings_file(path: str | None) -> dict[str, Any]:
@@ -447,7 +456,7 @@ def _file_wins(options: ZenohOptions, conf, key: str, endpoints: list[str]) -> b
     """Whether a config file's own endpoints at `key` stand over cbgo's built-in default.
 
     Endpoints given by flag or environment always win; but the built-in defaults
-    (``tcp/127.0.0.1:7447`` to connect, ``tcp/0.0.0.0:7447`` for the router) must not replace
+    (``tcp/127.0.0.1:7447`` to connect and for the router to listen on) must not replace
     the ones a ``--config`` file names, e.g. ``tls/router:7447`` in a TLS deployment.
     """
     if not options.config or endpoints not in ([DEFAULT_CONNECT], [DEFAULT_ROUTER_LISTEN]):

@@ -38,7 +38,8 @@ import cbgo
 from cbgo import wire
 from cbgo.client import pick_reply
 from cbgo.config import NoSettings, Resolved, resolve, zenoh_config
-from cbgo.errors import ConfigError, DeviceError, QueryError, RejectedMessage
+from cbgo.endpoints import check_can_listen, exposure_warning, listen_endpoints
+from cbgo.errors import ConfigError, DeviceError, QueryError, RejectedMessage, zenoh_reason
 from cbgo.keys import Keys, Topic, check_service_name
 from cbgo.logs import RateLimited, kv, setup_logging
 from cbgo.zenoh_transport import ZenohTransport
@@ -510,7 +511,9 @@ def _serve_forever(service_cls: type[Service], resolved: Resolved, log) -> int:
     loop = _EventLoop(lambda: ctx_box[0] if ctx_box else None)
     stop = threading.Event()
     _install_signal_handlers(stop, loop, log)
-    session = _open_session(zenoh_config(resolved.zenoh, service_cls.name), stop, log)
+    conf = zenoh_config(resolved.zenoh, service_cls.name)
+    _check_listeners(conf, log)
+    session = _open_session(conf, stop, log)
     if session is None:
         return EXIT_OK
     with session:
@@ -570,8 +573,23 @@ def _open_session(conf, stop: threading.Event, log):
     if stop.is_set() and not box:
         return None
     if isinstance(box[0], Exception):
-        raise box[0]
+        # A listener that cannot bind, a TLS file that cannot be read: the configuration's
+        # fault, said without the Rust source paths Zenoh appends.
+        raise ConfigError(f"cannot open the Zenoh session: {zenoh_reason(box[0])}")
     return box[0]
+
+
+def _check_listeners(conf, log) -> None:
+    """Fails with the fix when a listening endpoint cannot be bound; warns when it is exposed.
+
+    Raises:
+        ConfigError: a port is taken or an address is not this host's.
+    """
+    listening = listen_endpoints(conf)
+    check_can_listen(listening)
+    warning = exposure_warning(listening)
+    if warning:
+        log.warning(warning)
 
 
 def main_for(service_cls: type[Service]) -> Callable[[list[str] | None], None]:

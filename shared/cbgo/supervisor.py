@@ -8,9 +8,11 @@ Rules:
 - every child's stdout and stderr are merged into ours, each line prefixed with its name,
   up to its last line: stopping waits for that (at most `DRAIN_S`);
 - a child that exits while we are not stopping is restarted after a back-off that doubles from
-  0.5 s up to 30 s, and resets once the child has run for 30 s;
+  0.5 s up to 30 s, and resets once the child has run for 30 s; one that exits with code 2 (a
+  configuration error: a port in use, a bad setting) is not, since a restart cannot fix it;
 - readiness is the liveliness token ``<prefix>/@alive/<name>``, watched through our own Zenoh
-  client session; we say when all are alive, when one disappears and when it comes back.
+  client session, of a process we started (`AliveWatcher`: `cbgo up` checks the pid in the
+  process's status reply); we say when all are alive, when one disappears and when it comes back.
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+
+from cbgo.runtime import EXIT_CONFIG  # a configuration error: restarting cannot fix it
 
 BACKOFF_FIRST_S, BACKOFF_MAX_S, BACKOFF_RESET_AFTER_S = 0.5, 30.0, 30.0
 STOP_GRACE_S = 5.0
@@ -52,6 +56,7 @@ class Child:
     backoff_s: float = BACKOFF_FIRST_S
     restart_at: float | None = None
     forwarder: threading.Thread | None = None  # copies its output to ours
+    gave_up: bool = False  # exited with a configuration error: not restarted
 
 
 class Supervisor:
@@ -104,12 +109,19 @@ class Supervisor:
         for child in self.children:
             self.start(child)
 
-    def poll(self) -> None:
-        """Restarts children that exited (after their back-off); call it periodically."""
+    def poll(self) -> list[tuple[Child, int]]:
+        """Restarts children that exited (after their back-off); call it periodically.
+
+        Returns:
+            the children seen to exit in this call, with their exit codes.
+        """
         now = time.monotonic()
+        exited = []
         for child in self.children:
-            if self.stopping.is_set() or child.proc is None:
-                return
+            if self.stopping.is_set():
+                break
+            if child.proc is None:  # not started yet
+                continue
             if child.restart_at is not None:
                 if now >= child.restart_at:
                     child.restart_at = None
@@ -118,15 +130,23 @@ class Supervisor:
                     self.start(child)
                 continue
             code = child.proc.poll()
-            if code is None:
+            if code is None or child.gave_up:
                 continue
+            exited.append((child, code))
             ran = now - child.started_at
+            if code == EXIT_CONFIG:
+                child.gave_up = True
+                self._say(f"{child.name} exited with code {code} after {ran:.1f} s: a "
+                          "configuration error, named in its log above; not restarting it (fix "
+                          "the setting and start it again)")
+                continue
             if ran >= BACKOFF_RESET_AFTER_S:
                 child.backoff_s = BACKOFF_FIRST_S
             self._say(f"{child.name} exited with code {code} after {ran:.1f} s; "
                       f"restarting in {child.backoff_s:.1f} s")
             child.restart_at = now + child.backoff_s
             child.backoff_s = min(BACKOFF_MAX_S, child.backoff_s * 2)
+        return exited
 
     def stop_all(self) -> None:
         """Stops services in reverse order, then the router: SIGTERM, then SIGKILL.
@@ -155,7 +175,11 @@ class Supervisor:
 
 
 class AliveWatcher:
-    """Tracks liveliness tokens and reports readiness and losses.
+    """Tracks the liveliness tokens of our own processes; reports readiness, losses, strangers.
+
+    The caller tells it only about tokens it has checked are ours (`on_token`), and about the
+    ones of the same names that are not (`on_stranger`), so "ready" means that every expected
+    process is alive on this system, not that something of that name answers somewhere.
 
     Args:
         expected: the names that must be alive.
@@ -171,6 +195,7 @@ class AliveWatcher:
         self._say = say
         self._t0 = time.monotonic() if since is None else since
         self._lock = threading.Lock()
+        self._strangers: set[tuple[str, str]] = set()
 
     def on_token(self, name: str, present: bool) -> None:
         """Called for each liveliness change of a service."""
@@ -186,6 +211,21 @@ class AliveWatcher:
                 self.ready.set()
                 self._say(f"ready: {', '.join(sorted(self.expected))} alive after "
                           f"{time.monotonic() - self._t0:.1f} s")
+
+    def on_stranger(self, name: str, who: str) -> None:
+        """Reports, once, a process of an expected name that we did not start (not counted).
+
+        Args:
+            name: the service name of its token.
+            who: how to find it, e.g. "pid 4242 on host robot-pc".
+        """
+        with self._lock:
+            if (name, who) in self._strangers:
+                return
+            self._strangers.add((name, who))
+        self._say(f"a {name} that this `cbgo up` did not start is on the router ({who}); it is "
+                  f"not counted as ours, and two {name} processes would answer the same keys: "
+                  "stop one of them")
 
     def missing(self) -> list[str]:
         """Returns the expected names without a token."""

@@ -211,7 +211,9 @@ def test_the_router_keeps_its_router_mode_and_shares_the_prefix(services):
     # The environment wins over the router's defaults: ZENOH_MODE=client or a ZENOH_CONNECT
     # to itself would break it.
     env = environment(services[ROUTER])
-    assert services[ROUTER]["command"] == ["cbgo", "router"]
+    # Listening on every interface is explicit: the router's own default is loopback, which
+    # the other containers and the published port could not reach.
+    assert services[ROUTER]["command"] == ["cbgo", "router", "--listen", "tcp/0.0.0.0:7447"]
     assert "ZENOH_MODE" not in env and "ZENOH_CONNECT" not in env
     assert env.get("CBGO_PREFIX") == "${CBGO_PREFIX:-cbgo}"
     assert env.get("CBGO_LOG_FORMAT") == "json"

@@ -12,7 +12,7 @@ import time
 import msgpack
 import pytest
 
-from cbgo import registry, wire
+from cbgo import client, registry, wire
 from cbgo.examples import example
 
 CLI = [sys.executable, "-m", "cbgo.cli.main"]
@@ -33,9 +33,9 @@ def probe(stack, probe_argv):
 
 
 def test_cbgo_up_starts_the_router_reports_ready_and_stops_cleanly(stack):
-    up = stack.spawn("up", [*CLI, "up", "--router-listen", stack.endpoint])
+    up = stack.spawn("up", [*CLI, "up", "--listen", stack.endpoint])
     stack.wait_alive(["router"])
-    ready = up.wait_for_line("ready: ")
+    ready = up.wait_for_line("ready: ", timeout=90)  # every built service, on a loaded machine
     built = [s.name for s in registry.available()]
     assert all(name in ready for name in ["router", *built])
     listing = cli(stack, "ls")
@@ -67,6 +67,68 @@ def test_cbgo_up_restarts_a_router_killed_with_sigkill(stack):
     up.wait_for_line("restarting router")
     stack.wait_alive(["router"], timeout=30)
     assert stack.status("router")["pid"] != first_pid
+
+
+def processes_with(marker: str) -> list[int]:
+    """The pids of the processes whose environment holds `marker` (ours and our children's)."""
+    pids = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/environ", "rb") as f:
+                    if marker.encode() in f.read():
+                        pids.append(int(entry))
+            except OSError:  # gone meanwhile, or not ours to read
+                continue
+    return pids
+
+
+def test_cbgo_up_on_a_busy_port_exits_2_at_once_and_starts_nothing(stack):
+    stack.start_router()  # another system owns the port
+    stack.wait_alive(["router"])
+    marker = f"CBGO_TEST_MARK=up-busy-{os.getpid()}-{time.monotonic_ns()}"
+    t0 = time.monotonic()
+    done = subprocess.run([*CLI, "up", "episode", "--router-listen", stack.endpoint],
+                          capture_output=True, text=True, timeout=30,
+                          env={**stack.env(), marker.split("=")[0]: marker.split("=")[1]})
+    seconds = time.monotonic() - t0
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert seconds < 5.0
+    assert f"port {stack.port} is in use" in done.stderr and "--listen" in done.stderr
+    assert f"cbgo up --connect {stack.endpoint} episode" in done.stderr
+    assert "Traceback" not in done.stderr + done.stdout and ".rs:" not in done.stderr
+    assert processes_with(marker) == []  # no service, no router left behind
+    assert "episode" not in stack.alive()  # and none joined the other system's router
+
+
+def test_cbgo_router_on_a_busy_port_says_which_and_exits_2(stack):
+    stack.start_router()
+    stack.wait_alive(["router"])
+    done = subprocess.run([*CLI, "router", "--listen", stack.endpoint], capture_output=True,
+                          text=True, timeout=30, env={**stack.env(), "ZENOH_CONNECT": ""})
+    out = done.stdout + done.stderr
+    assert done.returncode == 2, out
+    assert f"port {stack.port} is in use" in out and "--listen tcp/127.0.0.1:PORT" in out
+    assert "Traceback" not in out and "ZError" not in out and ".rs:" not in out
+
+
+def test_cbgo_up_counts_only_its_own_processes_as_ready(stack):
+    zenoh = pytest.importorskip("zenoh")
+    stack.start_router()
+    stack.start_service("dry-robot")  # another system's dry-robot, on the same router
+    stack.wait_alive(["router", "dry-robot"])
+    stranger = stack.status("dry-robot")["pid"]
+    up = stack.spawn("up", [*CLI, "up", "--no-color", "--connect", stack.endpoint, "dry-robot"])
+    line = up.wait_for_line("did not start", timeout=60)
+    assert f"pid {stranger} on host" in line
+    ready = up.wait_for_line("ready: ", timeout=60)
+    assert "ready: dry-robot alive" in ready
+    answers = client.replies(stack.session(), stack.keys.ctl("dry-robot", "status"),
+                             consolidation=zenoh.ConsolidationMode.NONE, timeout_s=5)
+    pids = {wire.decode(r.payload)["pid"] for r in answers if r.ok}
+    assert len(pids) == 2 and stranger in pids  # both run; only ours made `up` ready
+    code, _seconds = stack.stop("up", signal.SIGINT)
+    assert code == 0, up.log()
 
 
 def test_pub_and_echo_round_trip_a_message_through_the_router(stack):

@@ -5,10 +5,13 @@ holds the bridge (the "switch") that joins them, so nothing touches the root nam
 interfaces or routes, and the fixed subnet cannot collide with the machine's own. The hosts
 are placed as deploy/README.md ("Several machines") recommends:
 
-    brain   10.213.0.1  cbgo up --router-listen tcp/10.213.0.1:7447 intent planner
-    sensor  10.213.0.2  cbgo up --no-router --connect ... leap-bridge static/dynamic-gesture episode
-    robot   10.213.0.3  cbgo up --no-router --connect ... dry-robot
+    brain   10.213.0.1  cbgo up --listen tcp/10.213.0.1:7447 intent planner
+    sensor  10.213.0.2  cbgo up --connect ... leap-bridge static/dynamic-gesture episode
+    robot   10.213.0.3  cbgo up --connect ... dry-robot
     console 10.213.0.4  cbgo wait-alive / ls / get / demo --no-start, like an operator's laptop
+
+The router listens on the cell's address only because it is told to: by default (`cbgo router`,
+`cbgo up`) it listens on loopback, and another host's connection is refused.
 
 Needs root, `ip` (iproute2) and `unshare` (util-linux); skipped with the reason otherwise.
 """
@@ -191,9 +194,9 @@ def cell(tmp_path):
 def start_services(cell: Cell) -> None:
     """Starts the router and the brain's services first, then the hosts that join it."""
     hosts = cell.hosts
-    cell.start_up(hosts["brain"], "--router-listen", ROUTER)
+    cell.start_up(hosts["brain"], "--listen", ROUTER)
     for name in ("sensor", "robot"):
-        cell.start_up(hosts[name], "--no-router", "--connect", ROUTER)
+        cell.start_up(hosts[name], "--connect", ROUTER)
 
 
 def service_hosts(cell: Cell) -> dict[str, Host]:
@@ -206,8 +209,10 @@ def service_hosts(cell: Cell) -> dict[str, Host]:
 
 def wait_alive(cell: Cell, names: list[str]) -> None:
     """Waits, from the console, until every service's liveliness token is at the router."""
+    # The router may still be starting on a loaded machine: the console waits for it too.
     done = cell.run(cell.hosts["console"], ["wait-alive", *names, "--timeout", "90",
-                                            "--connect", ROUTER], timeout=120)
+                                            "--connect", ROUTER, "--connect-timeout", "60"],
+                    timeout=180)
     assert done.returncode == 0, f"{done.stdout}{done.stderr}\n{cell.logs()}"
 
 
@@ -237,6 +242,9 @@ def test_the_session_runs_with_router_and_services_on_three_hosts(cell, tmp_path
     placed = service_hosts(cell)
     start_services(cell)
     wait_alive(cell, list(placed))
+    brain_log = cell.hosts["brain"].log.read_text(errors="replace")
+    assert f"listening on {ROUTER} without TLS" in brain_log  # reachable: warned, with the fix
+    assert "cbgo certs" in brain_log
 
     records = {r["name"]: r for r in json_lines(cell, ["ls"])}
     assert set(records) == set(placed), cell.logs()
@@ -259,3 +267,40 @@ def test_the_session_runs_with_router_and_services_on_three_hosts(cell, tmp_path
     assert cell.stop() == {"brain": 0, "sensor": 0, "robot": 0}, cell.logs()
     left = {h.name: netns_pids(h.netns) for h in cell.hosts.values()}
     assert left == {h: [] for h in left}, "`cbgo up` left processes behind"
+
+
+def tcp_connect(cell: Cell, host: Host, address: str, port: int) -> str:
+    """Opens a TCP connection from `host`; returns "connected" or the error's class name."""
+    probe = ("import socket, sys\n"
+             "try:\n"
+             "    socket.create_connection((sys.argv[1], int(sys.argv[2])), timeout=5).close()\n"
+             "    print('connected')\n"
+             "except OSError as e:\n"
+             "    print(type(e).__name__)\n")
+    done = subprocess.run(cell.argv_in(host, [sys.executable, "-c", probe, address, str(port)]),
+                          capture_output=True, text=True, timeout=30)
+    return done.stdout.strip() or done.stderr.strip()
+
+
+@pytest.mark.timeout(120)
+def test_a_default_router_is_refused_from_another_host(cell):
+    brain, console = cell.hosts["brain"], cell.hosts["console"]
+    log = cell.workdir / "router.log"
+    with open(log, "wb") as out:
+        router = subprocess.Popen(cell.argv_in(brain, [*CLI, "router"]), stdout=out,
+                                  stderr=subprocess.STDOUT, env=cell.env(brain),
+                                  start_new_session=True)
+    try:
+        here = cell.run(brain, ["wait-alive", "router", "--timeout", "60", "--connect",
+                                f"tcp/127.0.0.1:{PORT}"], timeout=90)
+        assert here.returncode == 0, f"{here.stdout}{here.stderr}\n{log.read_text()}"
+        assert tcp_connect(cell, brain, "127.0.0.1", PORT) == "connected"
+        assert tcp_connect(cell, console, brain.address, PORT) == "ConnectionRefusedError"
+        there = cell.run(console, ["ls", "--connect", f"tcp/{brain.address}:{PORT}",
+                                   "--connect-timeout", "3"], timeout=60)
+        assert there.returncode != 0 and "router" not in there.stdout
+        assert "without TLS" not in log.read_text()  # loopback: nothing to warn about
+    finally:
+        if router.poll() is None:
+            router.send_signal(signal.SIGTERM)
+        Cell._wait_or_kill(router)

@@ -111,10 +111,10 @@ def test_robot_stop_aborts_the_plan_at_once(stack):
     assert robot["stops"] == 1 and robot["log"] == []  # stopped mid-place; nothing sent after
 
 
-# ============================================================== mujoco-sim (when built)
+# ========================================================== mujoco-sim (when installed)
 
 needs_sim = pytest.mark.skipif(not registry.by_name("mujoco-sim").exists(),
-                               reason="mujoco-sim is not built yet (issue 8): "
+                               reason="mujoco-sim is not installed: "
                                       "cbgo.services.mujoco_sim.main does not exist")
 
 

@@ -1,4 +1,8 @@
-"""`cbgo record` and `cbgo replay` through a real router: same messages, same order, never early."""
+"""`cbgo record` and `cbgo replay` through a real router: same messages, same order, never early.
+
+And a replay cannot drive the robot unless asked to: derived keys need --derived, and a planner
+or robot alive needs --yes-drive-robot too; the planner refuses replayed intents anyway.
+"""
 
 from __future__ import annotations
 
@@ -7,11 +11,12 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 
-from cbgo import wire
+from cbgo import keys, wire
 from cbgo.examples import example
-from cbgo.recording import read_recording, recording_info
+from cbgo.recording import Recorder, read_recording, recording_info
 
 CLI = [sys.executable, "-m", "cbgo.cli.main"]
 SUFFIXES = ["hands/frame", "gaze", "user", "episode/event"]
@@ -48,6 +53,20 @@ def publish_irregularly(pubs, count, seed=3):
         sent.append((key, payload))
         deadline += rng.uniform(0.002, 0.018)
     return sent
+
+
+def marked(key, payload):
+    """The message `cbgo replay` sends for a recorded payload."""
+    message = {**wire.decode(payload), "replayed": True}
+    if key == "cbgo/hands/frame":
+        message["source"] = "replay"
+    return message
+
+
+def replay(stack, path, *flags, timeout=120):
+    """Runs `cbgo replay` against the stack; returns the CompletedProcess."""
+    return subprocess.run([*CLI, "replay", str(path), *flags, "--connect", stack.endpoint],
+                          capture_output=True, text=True, timeout=timeout, env=stack.env())
 
 
 def replay_into_subscriber(stack, path, *flags, expect):
@@ -92,8 +111,9 @@ def test_replay_sends_the_recorded_messages_in_order_and_never_early(stack, tmp_
     assert info.counts == {k: sum(1 for s in sent if s[0] == k) for k in info.counts}
     assert set(info.counts) == set(pubs)
 
-    arrivals, stderr = replay_into_subscriber(stack, path, expect=len(sent))
-    assert [(k, p) for _t, k, p in arrivals] == sent
+    arrivals, stderr = replay_into_subscriber(stack, path, "--derived", expect=len(sent))
+    assert [(k, wire.decode(p)) for _t, k, p in arrivals] == [(k, marked(k, p)) for k, p in sent]
+    assert "another publisher" not in stderr  # its own hand frames are not a second source
     # Never early, whatever the load: the replay cannot end before the recording's last
     # message was due. How late messages arrive is measured by `cbgo bench replay`, and the
     # schedule itself exactly by tests/unit/shared/test_replay_schedule.py.
@@ -121,5 +141,117 @@ def test_record_stops_after_count_and_replay_filters_restamps_and_speeds_up(stac
         got, old = wire.decode(payload), original.message
         assert got["ts"] >= before > old["ts"]
         assert {k: v for k, v in got.items() if k != "ts"} == {
-            k: v for k, v in old.items() if k != "ts"}
+            k: v for k, v in old.items() if k != "ts"} | {"replayed": True}
         wire.validate(got, wire.USER, "cbgo/user")
+
+
+# ---------------------------------------------------------------- a replay cannot drive the robot
+
+PAPER_SCENE = {
+    "objects": [
+        {"name": "cup1", "type": "cup", "position": [0.44, 0.06, 0.2], "size": 0.06,
+         "full": False, "on": None, "inside": None},
+        {"name": "drawer1", "type": "drawer", "position": [0.68, -0.18, 0.055], "size": 0.11,
+         "open": False},
+    ],
+    "robot": {"tcp": [0.44, 0.06, 0.26], "gripper_open": False, "holding": "cup1"},
+}
+
+
+def accepted_intent(action, obj):
+    return {"v": 1, "ts": time.time(), "episode": "ep-rec", "action": action, "object": obj,
+            "params": {}, "p_action": {action: 0.9}, "p_object": {obj: 0.9},
+            "confidence": 0.9, "status": "accepted", "reason": "", "model": "test"}
+
+
+def robot_acts(stack):
+    """(robot/act queries the dry-robot answered, robot/act queries the planner sent)."""
+    return (stack.status("dry-robot")["actions"]["actions"],
+            stack.status("planner")["robot_acts_sent"])
+
+
+def record_the_planner_acting(stack, path):
+    """Records a session in which a person's frames and an accepted intent moved dry-robot."""
+    replies = stack.query(stack.keys.of(keys.SIM_RESET), {"v": 1, "scene": PAPER_SCENE},
+                          timeout=30)
+    assert replies and replies[0][0] and replies[0][1]["ok"], replies
+    rec = stack.spawn("record", [*CLI, "record", "-o", str(path), "--connect", stack.endpoint])
+    rec.wait_for_line("recording ")
+    plans = stack.collect("plan/status")
+    for suffix in ("user", "gaze", "hands/frame"):
+        stack.put(suffix, example(suffix, ts=time.time()), timeout=10)
+    stack.put("intent", accepted_intent("put_into", "drawer1"), timeout=10)
+    end = plans.first(lambda m: m["state"] != "running", timeout=60)
+    assert end["state"] == "success", (end, stack.logs(["planner", "dry-robot"]))
+    time.sleep(0.5)  # the last scene and robot states reach the recorder
+    code, _seconds = stack.stop("record", signal.SIGINT)
+    assert code == 0, rec.log()
+    return recording_info(path).counts
+
+
+def test_a_replay_of_the_planner_acting_moves_nothing_on_a_live_system(stack, tmp_path):
+    path = tmp_path / "acted.mcap"
+    stack.start_router()
+    stack.start_service("dry-robot")
+    stack.start_service("planner")
+    stack.wait_alive(["router", "dry-robot", "planner"], timeout=60)
+    counts = record_the_planner_acting(stack, path)
+    for key in ("intent", "plan/status", "scene/state", "robot/state", "hands/frame"):
+        assert counts.get(f"cbgo/{key}"), (key, counts)
+    before = robot_acts(stack)
+    assert before[0] >= 4 and before[1] >= 4  # the recorded session did move the robot
+
+    # By default only the person's keys go out; the planner and the robot see nothing to do.
+    default = replay(stack, path, "--speed", "4")
+    assert default.returncode == 0, default.stderr
+    assert "not replaying derived and command keys" in default.stderr
+    assert "intent" in default.stderr and "--derived" in default.stderr
+
+    # Derived keys with a planner and a robot alive: refused, naming the flag that confirms.
+    derived = replay(stack, path, "--derived", "--speed", "4")
+    assert derived.returncode == 2, derived.stderr
+    assert "--yes-drive-robot" in derived.stderr
+    assert "dry-robot, planner are alive" in derived.stderr
+    assert "Traceback" not in derived.stderr
+
+    # Confirmed: everything goes out, marked replayed, and the planner refuses the intent.
+    forced = replay(stack, path, "--derived", "--yes-drive-robot", "--speed", "4")
+    assert forced.returncode == 0, forced.stderr
+    deadline = time.monotonic() + 10
+    while stack.status("planner")["plans"]["refused_replayed"] < 1:
+        assert time.monotonic() < deadline, stack.logs(["planner"])
+        time.sleep(0.1)
+    time.sleep(1.0)  # a tick or twenty: time for a robot/act, were one coming
+    assert robot_acts(stack) == before, stack.logs(["planner", "dry-robot"])
+    assert "refused a replayed intent put_into(drawer1)" in stack.procs["planner"].log()
+
+
+def test_hand_frames_from_another_publisher_during_a_replay_are_reported(stack, tmp_path):
+    path, t0 = tmp_path / "hands.mcap", time.time()
+    with Recorder(path) as rec:
+        for i in range(60):
+            frame = {**example("hands/frame", ts=t0 + i * 0.02), "seq": i}
+            rec.write("cbgo/hands/frame", wire.encode(frame), int((t0 + i * 0.02) * 1e9))
+    stack.start_router()
+    stack.wait_alive(["router"])
+    frames = stack.collect("hands/frame")  # a subscriber, so that the replay starts at once
+    live, stop = stack.session().declare_publisher("cbgo/hands/frame"), threading.Event()
+
+    def live_user():
+        seq = 0
+        while not stop.wait(0.02):
+            live.put(wire.encode({**example("hands/frame", ts=time.time()), "seq": seq}))
+            seq += 1
+
+    talker = threading.Thread(target=live_user, daemon=True)
+    talker.start()
+    try:
+        done = replay(stack, path, "--wait", "10")
+    finally:
+        stop.set()
+        talker.join(2)
+    assert done.returncode == 0, done.stderr
+    assert "hand frames from another publisher are arriving on cbgo/hands/frame" in done.stderr
+    assert re.search(r"\d+ hand frames? from another publisher arrived", done.stderr)
+    replayed = [m for m in frames.items() if m.get("replayed")]
+    assert replayed and all(m["source"] == "replay" for m in replayed)

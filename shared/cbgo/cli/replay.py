@@ -1,22 +1,42 @@
 """Replay an MCAP recording onto the network: each payload on its original key, in its rhythm.
 
-Messages go out in log-time order, each at the recorded time since the first message divided by
-``--speed`` (absolute deadlines on a monotonic clock, so timing errors do not add up over a long
-file). Before the first message the replay waits up to ``--wait`` seconds for a subscriber on
-every key, since a put made before any subscriber is known is lost. Known topics keep the
-contract's delivery policy (hand frames: dropped under congestion, express; events, intents,
-plans: never dropped). ``--keys`` replays only some keys (relative to the recording's prefix,
-wildcards allowed). ``--restamp`` sets each message's ``ts`` to the time it is sent and leaves
-every other field and byte of meaning as recorded; without it payloads are sent byte for byte.
-Both encodings play: a msgpack recording's payloads as stored, a JSON one's (``cbgo record
---encoding json``, ``cbgo export``) re-encoded to the msgpack they came from; its derived
-``foxglove/*`` channels are not wire messages and are not replayed.
+What goes out. By default only what a sensor or a person produces: ``hands/frame``, ``gaze`` and
+``user``. What the services derive from them and the commands (``episode/*``, ``gestures/*``,
+``intent``, ``intent/feedback``, ``scene/state``, ``robot/*``, ``plan/status``, and any key of a
+foreign file) go out only with ``--derived``. ``--keys`` chooses among them (relative to the
+recording's prefix, wildcards allowed).
+
+WARNING: a replay can move a robot. Recorded intents, scenes and stops act on a live system,
+and live services read replayed hand frames as a user's gestures. So, unless given
+``--yes-drive-robot``, replay refuses (exit code 2):
+
+- ``--derived`` while a planner or a robot (mujoco-sim, dry-robot) is alive;
+- hand frames while episode, intent and planner are alive (the intents they lead to would run).
+
+Every message it sends is marked ``replayed: true`` (hand frames also ``source: "replay"``), and
+the planner refuses replayed intents unless it was started with ``--accept-replayed``. Hand
+frames from another publisher (a live leap-bridge, a second replay) that arrive meanwhile are
+reported: the services would see both streams interleaved, one episode per few frames.
+
+Timing. Messages go out in log-time order, each at the recorded time since the first message
+divided by ``--speed`` (absolute deadlines on a monotonic clock, so timing errors do not add up
+over a long file). Before the first message the replay waits up to ``--wait`` seconds for a
+subscriber on every key, since a put made before any subscriber is known is lost. Known topics
+keep the contract's delivery policy (hand frames: dropped under congestion, express; events,
+intents, plans: never dropped). ``--restamp`` sets each message's ``ts`` to the time it is sent;
+every other field stays as recorded, besides the mark. A payload that is not a msgpack map
+cannot be marked and goes out as recorded. Both encodings play: a msgpack recording's payloads,
+a JSON one's (``cbgo record --encoding json``, ``cbgo export``) re-encoded to the msgpack they
+came from; its derived ``foxglove/*`` channels are not wire messages and are not replayed.
 
 Examples::
 
-    cbgo replay session.mcap
+    cbgo replay session.mcap                           # hands, gaze and user only
     cbgo replay session.mcap --speed 2 --keys hands/frame gaze
-    cbgo replay hands.mcap --loop --restamp        # a live-looking hand stream, until Ctrl-C
+    cbgo replay hands.mcap --loop --restamp            # a live-looking hand stream, until Ctrl-C
+    cbgo replay session.mcap --derived                 # everything, onto a system with no
+                                                       # planner or robot (cbgo web, Foxglove)
+    cbgo replay session.mcap --derived --yes-drive-robot   # everything, planner or robot alive
 """
 
 from __future__ import annotations
@@ -29,7 +49,7 @@ import time
 
 from tqdm import tqdm
 
-from cbgo import client, wire
+from cbgo import client, registry, wire
 from cbgo.cli.common import add_network_arguments, fail, session
 from cbgo.errors import ConfigError, RecordingError, RejectedMessage
 from cbgo.keys import Keys
@@ -39,6 +59,16 @@ from cbgo.recording import KeyFilter, RecordedMessage, read_recording, recording
 # the router and the subscribers, which then deliver late. A timed wait wakes ~0.1-0.3 ms late,
 # about equally for every message, so the intervals barely change.
 MAX_WAIT_S = 0.1  # longest single wait, so a stop request is seen quickly
+
+SENSOR_KEYS = ("hands/frame", "gaze", "user")
+"""What a sensor or a person produces: the keys replayed without --derived."""
+HANDS = "hands/frame"
+REPLAY_MARK = "replayed"
+"""The field every replayed message carries (``true``); docs/protocol.md, "Common fields"."""
+PIPELINE = ("episode", "intent", "planner")
+"""Alive together, they turn hand frames into intents that the planner executes."""
+ALIVE_TIMEOUT_S = 1.0
+CONFIRM = "--yes-drive-robot"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -53,6 +83,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--keys", nargs="+", metavar="KEY",
                         help="replay only these keys (relative to the recording's prefix; "
                              "wildcards allowed)")
+    parser.add_argument("--derived", action="store_true",
+                        help="also replay what services derive and the commands (episode/*, "
+                             "gestures/*, intent*, scene/state, robot/*, plan/status, other "
+                             "keys); by default only hands/frame, gaze and user go out")
+    parser.add_argument(CONFIRM, dest="yes_drive_robot", action="store_true",
+                        help="replay even where it can move the robot: --derived while a planner "
+                             "or a robot is alive, or hand frames while episode, intent and "
+                             "planner are alive")
     parser.add_argument("--restamp", action="store_true",
                         help="set each message's ts to the time it is sent")
     parser.add_argument("--wait", type=float, default=2.0, metavar="S",
@@ -66,6 +104,137 @@ def _file_keys(prefix: str | None, fallback: Keys) -> Keys:
         return Keys(prefix) if prefix else fallback
     except ConfigError:
         return fallback
+
+
+# ---------------------------------------------------------------- what goes out, and whether
+
+
+def choose_keys(matching: list[str], keys: Keys, derived: bool) -> tuple[list[str], list[str]]:
+    """Splits the recording's matching keys into those to replay and those held back.
+
+    Args:
+        matching: the keys of the recording that --keys selects (all, without --keys).
+        keys: the recording's keys.
+        derived: --derived: every key goes out.
+
+    Returns:
+        (keys to replay, derived keys held back for want of --derived).
+    """
+    sensors = {keys.resolve(s) for s in SENSOR_KEYS}
+    chosen = [k for k in matching if derived or k in sensors]
+    return chosen, [k for k in matching if k not in chosen]
+
+
+def robot_risks(chosen: list[str], keys: Keys, alive: set[str]) -> list[str]:
+    """Returns why replaying `chosen` onto a system where `alive` runs could move the robot.
+
+    Args:
+        chosen: the keys about to be replayed.
+        keys: the recording's keys (its prefix is where the messages go).
+        alive: the services whose liveliness token is present under that prefix.
+    """
+    sensors = {keys.resolve(s) for s in SENSOR_KEYS}
+    derived = [_short(keys, k) for k in chosen if k not in sensors]
+    movers = sorted(alive & {"planner", *registry.ROBOTS.values()})
+    risks = []
+    if derived and movers:
+        risks.append(f"{_listed(movers)} {'is' if len(movers) == 1 else 'are'} alive, and the "
+                     f"derived keys ({_listed(derived, 6)}) would act on them: recorded intents, "
+                     "scenes and stops")
+    if keys.resolve(HANDS) in chosen and set(PIPELINE) <= alive:
+        risks.append(f"{_listed(list(PIPELINE))} are alive: they would read the replayed hand "
+                     "frames as a live user's gestures, and the planner would execute the "
+                     "intents they lead to")
+    return risks
+
+
+def _short(keys: Keys, key: str) -> str:
+    """Returns a key relative to the prefix, as the user types it."""
+    head = keys.prefix + "/"
+    return key[len(head):] if key.startswith(head) else key
+
+
+def _listed(names: list[str], most: int = 0) -> str:
+    shown = names[:most] if most else names
+    more = f" and {len(names) - len(shown)} more" if len(names) > len(shown) else ""
+    return ", ".join(shown) + more
+
+
+def _refuse_to_drive(sess, keys: Keys, chosen: list[str], confirmed: bool) -> None:
+    """Ends the command (exit 2) where the replay could move the robot and nobody confirmed."""
+    if confirmed:
+        return
+    risks = robot_risks(chosen, keys, client.alive(sess, keys, ALIVE_TIMEOUT_S))
+    if risks:
+        fail(f"not replaying: it could move the robot. {'; '.join(risks)}. Add {CONFIRM} to "
+             "replay anyway (the planner still refuses replayed intents unless started with "
+             "--accept-replayed), replay fewer keys (--keys gaze user; no --derived), or replay "
+             "onto a system without them", 2)
+
+
+def replayed_message(recorded: RecordedMessage, hands_key: str) -> dict | None:
+    """Returns the message as it is replayed (marked), or None for a payload that is no map."""
+    try:
+        message = recorded.message
+    except RejectedMessage:
+        return None
+    marked = {**message, REPLAY_MARK: True}
+    if recorded.key == hands_key:
+        marked["source"] = "replay"  # the contract's value for a replayed recording
+    return marked
+
+
+# ---------------------------------------------------------------- a second hand source
+
+
+class SecondSource:
+    """Counts the hand frames that another publisher sends on the key during the replay.
+
+    Its subscriber takes remote samples only (`watch_hands`), so our own frames never reach it.
+
+    Args:
+        key: the hands/frame key the replay publishes on.
+        say: where the first sighting is reported.
+    """
+
+    def __init__(self, key: str, say=print):
+        self.key = key
+        self.foreign = 0
+        self._say = say
+        self._lock = threading.Lock()
+
+    def on_frame(self) -> None:
+        """Called for each hand frame another session published on the key."""
+        with self._lock:
+            self.foreign += 1
+            first = self.foreign == 1
+        if first:
+            self._say(f"cbgo: warning: hand frames from another publisher are arriving on "
+                      f"{self.key} (a live leap-bridge? `cbgo ls` shows it): the services see "
+                      "them interleaved with the replayed ones, which cuts episodes into "
+                      "pieces. Stop that source, or replay other keys (--keys gaze user)")
+
+    def summary(self) -> str | None:
+        """Returns the end-of-replay report, or None when no other frame came."""
+        if not self.foreign:
+            return None
+        return (f"cbgo: warning: {self.foreign} hand frame{'s' if self.foreign != 1 else ''} "
+                f"from another publisher arrived on {self.key} during the replay")
+
+
+def watch_hands(sess, watch: SecondSource):
+    """Subscribes `watch` to the frames of other sessions only.
+
+    Declared once the replay's own publishers have found their subscribers: a local subscriber
+    counts as a match for them, and would end that wait at once.
+    """
+    import zenoh
+
+    return sess.declare_subscriber(watch.key, lambda _sample: watch.on_frame(),
+                                   allowed_origin=zenoh.Locality.REMOTE)
+
+
+# ---------------------------------------------------------------- publishing
 
 
 def _declare(sess, keys: Keys, key: str):
@@ -111,17 +280,8 @@ def _sleep_until(deadline: float, stop: threading.Event) -> bool:
             return True
 
 
-def restampable(recorded: RecordedMessage) -> dict | None:
-    """Returns the decoded message if it is a map with a ``ts`` field, else None."""
-    try:
-        message = recorded.message
-    except RejectedMessage:
-        return None
-    return message if "ts" in message else None
-
-
 def play(path: str, filters: list[str] | None, puts: dict, args: argparse.Namespace,
-         stop: threading.Event, bar: tqdm) -> int:
+         stop: threading.Event, bar: tqdm, hands_key: str = "") -> int:
     """Publishes one pass over the recording with its timing; returns the messages sent.
 
     Args:
@@ -131,6 +291,7 @@ def play(path: str, filters: list[str] | None, puts: dict, args: argparse.Namesp
         args: the verb's flags (speed, restamp).
         stop: set by Ctrl-C or SIGTERM; the pass ends at the next message.
         bar: the progress bar to advance.
+        hands_key: the recording's hands/frame key (its frames also get ``source: "replay"``).
 
     Raises:
         RecordingError: the file turned out corrupt mid-way.
@@ -143,10 +304,15 @@ def play(path: str, filters: list[str] | None, puts: dict, args: argparse.Namesp
         if origin is None:
             origin = (time.perf_counter(), recorded.log_time_ns)
         deadline = origin[0] + (recorded.log_time_ns - origin[1]) / 1e9 / args.speed
-        message = restampable(recorded) if args.restamp else None  # decoded ahead of time
+        message = replayed_message(recorded, hands_key)  # decoded ahead of time
+        restamp = args.restamp and message is not None and "ts" in message
+        payload = recorded.payload if message is None else (
+            None if restamp else wire.encode(message))
         if _sleep_until(deadline, stop):
             break
-        put(recorded.payload if message is None else wire.encode({**message, "ts": time.time()}))
+        if payload is None:
+            payload = wire.encode({**message, "ts": time.time()})
+        put(payload)
         sent += 1
         bar.update(1)
     return sent
@@ -164,29 +330,53 @@ def run(args: argparse.Namespace) -> int:
         keys = _file_keys(info.prefix, net_keys)
         filters = [keys.resolve(k) for k in args.keys] if args.keys else None
         try:
-            chosen = [k for k in info.counts if KeyFilter(filters)(k) and info.counts[k]]
+            matching = [k for k in info.counts if KeyFilter(filters)(k) and info.counts[k]]
         except RecordingError as e:
             fail(str(e), 2)
-        if not chosen:
+        if not matching:
             fail(f"no messages in {args.file} match {filters or 'any key'}", 2)
+        chosen = _chosen_or_fail(args, matching, keys)
+        _refuse_to_drive(sess, keys, chosen, args.yes_drive_robot)
+        hands_key = keys.resolve(HANDS)
         publishers = _declare_all(sess, keys, chosen)
         _wait_for_subscribers(publishers, args.wait)
+        watch = SecondSource(hands_key, say=lambda text: tqdm.write(text, file=sys.stderr))
+        watching = watch_hands(sess, watch) if hands_key in publishers else None
         stop = threading.Event()
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, lambda *_: stop.set())
-        total = sum(info.counts[k] for k in chosen)
+        total = sum(info.counts[k] for k in publishers)
         puts = {k: p.put for k, p in publishers.items()}
-        return _loop(args, filters, puts, total, stop)
+        code = _loop(args, filters, puts, total, stop, hands_key)
+        if watching is not None:
+            watching.undeclare()
+        if watch.summary():
+            print(watch.summary(), file=sys.stderr)
+        return code
+
+
+def _chosen_or_fail(args: argparse.Namespace, matching: list[str], keys: Keys) -> list[str]:
+    """Returns the keys to replay; says which derived keys stay back, or fails if all do."""
+    chosen, held_back = choose_keys(matching, keys, args.derived)
+    names = _listed([_short(keys, k) for k in held_back], 8)
+    if not chosen:
+        fail(f"{args.file} has no sensor key to replay here ({', '.join(SENSOR_KEYS)}), only "
+             f"derived or command keys: {names}. --derived replays them (read the warning in "
+             "`cbgo replay --help` first)", 2)
+    if held_back:
+        print(f"cbgo: not replaying derived and command keys ({names}); --derived replays "
+              "them", file=sys.stderr)
+    return chosen
 
 
 def _loop(args: argparse.Namespace, filters, puts: dict, total: int,
-          stop: threading.Event) -> int:
+          stop: threading.Event, hands_key: str) -> int:
     started, sent, passes = time.monotonic(), 0, 0
     with tqdm(total=total, unit="msg", file=sys.stderr, disable=None, leave=False) as bar:
         while not stop.is_set():
             bar.reset(total)
             try:
-                sent += play(args.file, filters, puts, args, stop, bar)
+                sent += play(args.file, filters, puts, args, stop, bar, hands_key)
             except RecordingError as e:
                 fail(f"{e} (after {sent} messages)", 2)
             passes += 1

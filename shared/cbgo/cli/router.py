@@ -2,9 +2,15 @@
 
 Examples::
 
-    cbgo router                                   # listen on tcp/0.0.0.0:7447
-    cbgo router --listen tcp/127.0.0.1:7448       # another port, loopback only
+    cbgo router                                   # listen on tcp/127.0.0.1:7447 (this host)
+    cbgo router --listen tcp/127.0.0.1:7448       # another port, still loopback only
+    cbgo router --listen tcp/10.0.0.5:7447        # the cell's network: other hosts may join
     cbgo router --connect tcp/robot-pc:7447       # join another site's router
+
+Loopback by default: other hosts reach the router only where ``--listen`` names an address
+they can reach. Listening there without TLS is logged as a warning naming the secured
+deployment (`cbgo certs make`, deploy/compose.tls.yaml, deploy/tls/). A port in use ends the
+router at once (exit code 2) with a message naming the port and ``--listen``.
 
 All flags are the service runtime's; see `cbgo router --help`.
 """

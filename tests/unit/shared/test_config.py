@@ -146,7 +146,7 @@ def test_the_zenoh_defaults_of_a_service_sit_below_every_layer():
     resolved = run([], zenoh_defaults=router)
     assert resolved.zenoh.mode == "router"
     assert resolved.zenoh.connect == []
-    assert resolved.zenoh.listen == ["tcp/0.0.0.0:7447"]
+    assert resolved.zenoh.listen == ["tcp/127.0.0.1:7447"]  # loopback: this host only
     resolved = run(["--listen", "tcp/0.0.0.0:7448"], {"ZENOH_CONNECT": "tcp/other:7447"},
                    zenoh_defaults=router)
     assert resolved.zenoh.listen == ["tcp/0.0.0.0:7448"]
@@ -433,7 +433,7 @@ def test_a_config_files_endpoints_stand_over_the_built_in_defaults(tmp_path):
     assert _json.loads(client.get_json("connect/endpoints")) == ["tls/router:7447"]
     assert _json.loads(client.get_json("connect/timeout_ms")) == -1
     router = zenoh_config(ZenohOptions(config=str(path), mode="router", connect=[],
-                                       listen=["tcp/0.0.0.0:7447"]), "r")
+                                       listen=[config.DEFAULT_ROUTER_LISTEN]), "r")
     assert _json.loads(router.get_json("listen/endpoints")) == ["tls/0.0.0.0:7447"]
     # an endpoint given by flag or environment still wins over the file
     chosen = zenoh_config(ZenohOptions(config=str(path), connect=["tls/10.0.0.5:7447"]), "t")

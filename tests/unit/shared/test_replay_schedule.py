@@ -1,6 +1,7 @@
 """`cbgo replay`'s schedule: each message waits for its recorded time / speed, counted from the
-first, and is then put as recorded (or restamped). The clock is replaced, so nothing here depends
-on how busy the machine is; `cbgo bench replay` measures the real rhythm through a router."""
+first, and is then put as recorded, marked ``replayed: true`` (or restamped too). The clock is
+replaced, so nothing here depends on how busy the machine is; `cbgo bench replay` measures the
+real rhythm through a router."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from tqdm import tqdm
 from cbgo import wire
 from cbgo.cli import replay
 from cbgo.examples import example
+from cbgo.keys import Keys
 from cbgo.recording import Recorder
 
 GAPS_MS = [0, 3, 17, 2, 11, 40]
@@ -30,6 +32,15 @@ def recording(tmp_path):
             rec.write(key, payload, now_ns)
             written.append((key, payload, now_ns))
     return path, written
+
+
+def replayed(payload):
+    """What the replay sends for a recorded payload: the same message, marked."""
+    return {**wire.decode(payload), "replayed": True}
+
+
+def decoded(sent):
+    return [(k, wire.decode(p)) for k, p in sent]
 
 
 def play_with_clock(monkeypatch, path, speed=1.0, restamp=False, stop_after=None):
@@ -61,7 +72,7 @@ def test_each_message_waits_for_its_recorded_time_over_speed(monkeypatch, record
     first_ns = written[0][2]
     assert deadlines == pytest.approx([origin + (n - first_ns) / 1e9 / speed
                                        for _k, _p, n in written], abs=1e-9)
-    assert sent == [(k, p) for k, p, _n in written]  # byte for byte, in order
+    assert decoded(sent) == [(k, replayed(p)) for k, p, _n in written]  # in order, marked
 
 
 def test_only_the_chosen_keys_play_and_their_times_still_count_from_the_first_played(
@@ -75,7 +86,7 @@ def test_only_the_chosen_keys_play_and_their_times_still_count_from_the_first_pl
         replay.play(str(path), None, {"cbgo/gaze": lambda p: sent.append(p)}, args,
                     threading.Event(), bar)
     gaze = [(p, n) for k, p, n in written if k == "cbgo/gaze"]
-    assert sent == [p for p, _n in gaze]
+    assert [wire.decode(p) for p in sent] == [replayed(p) for p, _n in gaze]
     assert deadlines == pytest.approx([origin + (n - gaze[0][1]) / 1e9 for _p, n in gaze])
 
 
@@ -84,7 +95,7 @@ def test_restamp_changes_ts_alone(monkeypatch, recording):
     monkeypatch.setattr(replay.time, "time", lambda: 42.5)
     _deadlines, _origin, sent = play_with_clock(monkeypatch, path, restamp=True)
     for (key, payload), (_k, original, _n) in zip(sent, written, strict=True):
-        got, old = wire.decode(payload), wire.decode(original)
+        got, old = wire.decode(payload), replayed(original)
         assert got["ts"] == 42.5 != old["ts"]
         assert {k: v for k, v in got.items() if k != "ts"} == {
             k: v for k, v in old.items() if k != "ts"}, key
@@ -94,4 +105,66 @@ def test_a_stop_while_waiting_ends_the_pass_before_that_message(monkeypatch, rec
     path, written = recording
     deadlines, _origin, sent = play_with_clock(monkeypatch, path, stop_after=2)
     assert len(deadlines) == 3
-    assert sent == [(k, p) for k, p, _n in written[:2]]
+    assert decoded(sent) == [(k, replayed(p)) for k, p, _n in written[:2]]
+
+
+def test_a_hand_frame_says_it_is_replayed_and_a_payload_that_is_no_map_goes_out_as_recorded(
+        tmp_path):
+    path = tmp_path / "mixed.mcap"
+    frame = wire.encode(example("hands/frame", ts=1.0))
+    with Recorder(path) as rec:
+        rec.write("cbgo/hands/frame", frame, 1_000_000_000)
+        rec.write("cbgo/gaze", b"\xc1", 1_001_000_000)  # not msgpack: cannot be marked
+    sent = []
+    puts = {k: (lambda payload, k=k: sent.append((k, payload)))
+            for k in ("cbgo/hands/frame", "cbgo/gaze")}
+    with tqdm(disable=True) as bar:
+        replay.play(str(path), None, puts, argparse.Namespace(speed=1000.0, restamp=True),
+                    threading.Event(), bar, hands_key="cbgo/hands/frame")
+    (key, payload), raw = sent
+    got = wire.decode(payload)
+    assert key == "cbgo/hands/frame" and got["replayed"] is True
+    assert got["source"] == "replay" and example("hands/frame")["source"] == "simulated"
+    wire.validate(got, wire.HANDS_FRAME, key)  # still a valid frame: the mark is an extra field
+    assert raw == ("cbgo/gaze", b"\xc1")
+
+
+# ---------------------------------------------------------------- what goes out, and whether
+
+KEYS = Keys("cbgo")
+RECORDED = ["cbgo/hands/frame", "cbgo/gaze", "cbgo/user", "cbgo/episode/event", "cbgo/intent",
+            "cbgo/scene/state", "cbgo/robot/stop", "cbgo/plan/status", "other/topic"]
+
+
+def test_only_sensor_and_person_keys_go_out_without_derived():
+    chosen, held_back = replay.choose_keys(RECORDED, KEYS, derived=False)
+    assert chosen == ["cbgo/hands/frame", "cbgo/gaze", "cbgo/user"]
+    assert held_back == RECORDED[3:]
+    assert replay.choose_keys(RECORDED, KEYS, derived=True) == (RECORDED, [])
+
+
+@pytest.mark.parametrize("alive", [{"planner"}, {"dry-robot"}, {"mujoco-sim", "router"}])
+def test_derived_keys_while_a_planner_or_robot_is_alive_are_a_risk(alive):
+    (risk,) = replay.robot_risks(RECORDED, KEYS, alive)
+    assert "intent" in risk and sorted(alive - {"router"})[0] in risk
+
+
+def test_hand_frames_are_a_risk_only_where_the_whole_pipeline_to_the_planner_is_alive():
+    sensors = RECORDED[:3]
+    assert replay.robot_risks(sensors, KEYS, {"router", "episode", "intent", "dry-robot"}) == []
+    assert replay.robot_risks(sensors, KEYS, {"planner", "dry-robot"}) == []
+    (risk,) = replay.robot_risks(sensors, KEYS, {"episode", "intent", "planner"})
+    assert "gestures" in risk
+    assert replay.robot_risks(["cbgo/gaze", "cbgo/user"], KEYS,
+                              {"episode", "intent", "planner", "dry-robot"}) == []
+    assert replay.robot_risks(RECORDED, KEYS, {"router", "web", "episode"}) == []
+
+
+def test_a_second_hand_source_is_reported_once_and_counted():
+    said = []
+    watch = replay.SecondSource("cbgo/hands/frame", say=said.append)
+    assert watch.summary() is None
+    watch.on_frame()
+    watch.on_frame()
+    assert watch.foreign == 2 and len(said) == 1 and "another publisher" in said[0]
+    assert "2 hand frames from another publisher" in watch.summary()

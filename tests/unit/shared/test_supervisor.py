@@ -88,3 +88,40 @@ def test_a_stopped_childs_last_lines_are_ours_before_stop_all_returns(monkeypatc
         time.sleep(0.02)
     sup.stop_all()
     assert out.lines[-1].endswith("talker | bye 199\n")
+
+
+def test_a_child_with_a_configuration_error_is_not_restarted():
+    said = []
+    misconfigured = Child("misconfigured", [sys.executable, "-c", "import sys; sys.exit(2)"])
+    sup = Supervisor([misconfigured], say=said.append)
+    sup.start_all()
+    exits = []
+    end = time.monotonic() + 1.5
+    while time.monotonic() < end:
+        exits += sup.poll()
+        time.sleep(0.02)
+    sup.stop_all()
+    assert exits == [(misconfigured, 2)]
+    assert misconfigured.restarts == 0 and misconfigured.gave_up
+    assert "configuration error" in said[0] and "not restarting" in said[0]
+
+
+def test_children_not_started_yet_are_left_alone_and_the_others_still_watched():
+    said = []
+    crasher = Child("crasher", [sys.executable, "-c", "import sys; sys.exit(3)"])
+    later = Child("later", [sys.executable, "-c", "pass"])
+    sup = Supervisor([later, crasher], say=said.append)
+    sup.start(crasher)
+    supervise_for(sup, 0.8)
+    sup.stop_all()
+    assert later.proc is None and crasher.restarts >= 1
+
+
+def test_a_process_of_our_name_that_we_did_not_start_is_reported_once_and_not_counted():
+    said = []
+    watcher = AliveWatcher(["router", "dry-robot"], said.append)
+    watcher.on_token("router", True)
+    watcher.on_stranger("dry-robot", "pid 42 on host other")
+    watcher.on_stranger("dry-robot", "pid 42 on host other")
+    assert not watcher.ready.is_set() and watcher.missing() == ["dry-robot"]
+    assert len(said) == 1 and "did not start" in said[0] and "pid 42 on host other" in said[0]
