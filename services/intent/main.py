@@ -101,6 +101,7 @@ class IntentSettings(DecisionConfig):
             raise ConfigError(f"watch_s={self.watch_s} must be 0 (off) or positive")
 
 
+
 class Intent(Service):
     """The intent service."""
 
@@ -207,8 +208,11 @@ class Intent(Service):
         self.user = msg["user"]
 
     def on_summary(self, msg: dict):
-        """Publishes the intent of a finished episode."""
-        return [(keys.INTENT, self.engine.from_summary(msg, self.scene))]
+        """Publishes the intent of a finished episode (marked replayed if its episode was)."""
+        intent = self.engine.from_summary(msg, self.scene)
+        if msg.get(wire.REPLAYED) is True:  # from recorded hands: no planner may act on it
+            intent = {**intent, wire.REPLAYED: True}
+        return [(keys.INTENT, intent)]
 
     def on_infer(self, query: dict) -> dict:
         """Answers ``cbgo/intent/infer``: the intent for the query's gesture vector and context."""

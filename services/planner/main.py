@@ -28,7 +28,7 @@ from collections import deque
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 
-from cbgo import keys
+from cbgo import keys, wire
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.logs import RateLimited
@@ -37,7 +37,6 @@ from cbgo.services.planner.plan import Plan
 from cbgo.services.planner.scenes import SceneSource
 
 FRESH_SCENE_S = 1.0  # how long an intent waits for a scene newer than itself
-REPLAYED = "replayed"  # the mark `cbgo replay` puts on every message (docs/protocol.md)
 
 
 @dataclass
@@ -236,7 +235,7 @@ class Planner(Service):
         A replayed intent is a past decision, a replayed scene a past world: executing one, or
         planning on the other, moves the robot for what no one asked for now.
         """
-        if msg.get(REPLAYED) is not True or self.settings.accept_replayed:
+        if msg.get(wire.REPLAYED) is not True or self.settings.accept_replayed:
             return False
         self.counts["refused_replayed"] += 1
         self.replay_log.warning(kind, f"refused a replayed {what} (replayed: true, from `cbgo "

@@ -63,6 +63,10 @@ ACTIONS = (
 FINGER_TYPES = ("thumb", "index", "middle", "ring", "pinky")
 BONE_TYPES = ("metacarpal", "proximal", "intermediate", "distal")
 PROB_SUM_TOLERANCE = 1e-3  # float32 probabilities summed in float64
+REPLAYED = "replayed"
+"""The optional common field (``true``) of a message from a recording (`cbgo replay`), and of
+what the services derive from recorded hands; a planner does not act on it
+(docs/protocol.md, "Common fields")."""
 
 
 # --------------------------------------------------------------------------- rules

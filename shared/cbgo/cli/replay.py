@@ -11,10 +11,14 @@ and live services read replayed hand frames as a user's gestures. So, unless giv
 ``--yes-drive-robot``, replay refuses (exit code 2):
 
 - ``--derived`` while a planner or a robot (mujoco-sim, dry-robot) is alive;
-- hand frames while episode, intent and planner are alive (the intents they lead to would run).
+- hand frames while episode, intent and a planner are alive that does not say it refuses
+  replayed intents (one started with ``--accept-replayed``, or another program).
 
-Every message it sends is marked ``replayed: true`` (hand frames also ``source: "replay"``), and
-the planner refuses replayed intents unless it was started with ``--accept-replayed``. Hand
+Every message it sends is marked ``replayed: true`` (hand frames also ``source: "replay"``); the
+episode service marks the summaries of episodes made of such frames, the intent service their
+intents, and the planner refuses replayed intents unless it was started with
+``--accept-replayed``. So hand frames replayed onto a live system show what the pipeline makes
+of them (gestures, episodes, intents) and move nothing. Hand
 frames from another publisher (a live leap-bridge, a second replay) that arrive meanwhile are
 reported: the services would see both streams interleaved, one episode per few frames.
 
@@ -63,8 +67,6 @@ MAX_WAIT_S = 0.1  # longest single wait, so a stop request is seen quickly
 SENSOR_KEYS = ("hands/frame", "gaze", "user")
 """What a sensor or a person produces: the keys replayed without --derived."""
 HANDS = "hands/frame"
-REPLAY_MARK = "replayed"
-"""The field every replayed message carries (``true``); docs/protocol.md, "Common fields"."""
 PIPELINE = ("episode", "intent", "planner")
 """Alive together, they turn hand frames into intents that the planner executes."""
 ALIVE_TIMEOUT_S = 1.0
@@ -89,8 +91,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "keys); by default only hands/frame, gaze and user go out")
     parser.add_argument(CONFIRM, dest="yes_drive_robot", action="store_true",
                         help="replay even where it can move the robot: --derived while a planner "
-                             "or a robot is alive, or hand frames while episode, intent and "
-                             "planner are alive")
+                             "or a robot is alive, or hand frames while episode, intent and a "
+                             "planner that accepts replayed intents are alive")
     parser.add_argument("--restamp", action="store_true",
                         help="set each message's ts to the time it is sent")
     parser.add_argument("--wait", type=float, default=2.0, metavar="S",
@@ -125,13 +127,16 @@ def choose_keys(matching: list[str], keys: Keys, derived: bool) -> tuple[list[st
     return chosen, [k for k in matching if k not in chosen]
 
 
-def robot_risks(chosen: list[str], keys: Keys, alive: set[str]) -> list[str]:
+def robot_risks(chosen: list[str], keys: Keys, alive: set[str],
+                planner_refuses_replayed: bool) -> list[str]:
     """Returns why replaying `chosen` onto a system where `alive` runs could move the robot.
 
     Args:
         chosen: the keys about to be replayed.
         keys: the recording's keys (its prefix is where the messages go).
         alive: the services whose liveliness token is present under that prefix.
+        planner_refuses_replayed: the live planner said (its status) that it refuses replayed
+            intents; the intents that replayed hand frames lead to are marked replayed too.
     """
     sensors = {keys.resolve(s) for s in SENSOR_KEYS}
     derived = [_short(keys, k) for k in chosen if k not in sensors]
@@ -141,11 +146,17 @@ def robot_risks(chosen: list[str], keys: Keys, alive: set[str]) -> list[str]:
         risks.append(f"{_listed(movers)} {'is' if len(movers) == 1 else 'are'} alive, and the "
                      f"derived keys ({_listed(derived, 6)}) would act on them: recorded intents, "
                      "scenes and stops")
-    if keys.resolve(HANDS) in chosen and set(PIPELINE) <= alive:
-        risks.append(f"{_listed(list(PIPELINE))} are alive: they would read the replayed hand "
-                     "frames as a live user's gestures, and the planner would execute the "
-                     "intents they lead to")
+    if keys.resolve(HANDS) in chosen and set(PIPELINE) <= alive and not planner_refuses_replayed:
+        risks.append(f"{_listed(list(PIPELINE))} are alive and the planner does not say that it "
+                     "refuses replayed intents (--accept-replayed, or not cbgo's planner): it "
+                     "would execute the intents the replayed hand frames lead to")
     return risks
+
+
+def planner_refuses_replayed(sess, keys: Keys) -> bool:
+    """Returns whether the live planner's status says it refuses replayed intents."""
+    reply = client.status(sess, keys, "planner", timeout_s=ALIVE_TIMEOUT_S * 3).get("planner")
+    return bool(reply) and reply.get("config", {}).get("accept_replayed") is False
 
 
 def _short(keys: Keys, key: str) -> str:
@@ -164,7 +175,9 @@ def _refuse_to_drive(sess, keys: Keys, chosen: list[str], confirmed: bool) -> No
     """Ends the command (exit 2) where the replay could move the robot and nobody confirmed."""
     if confirmed:
         return
-    risks = robot_risks(chosen, keys, client.alive(sess, keys, ALIVE_TIMEOUT_S))
+    alive = client.alive(sess, keys, ALIVE_TIMEOUT_S)
+    refuses = "planner" in alive and planner_refuses_replayed(sess, keys)
+    risks = robot_risks(chosen, keys, alive, refuses)
     if risks:
         fail(f"not replaying: it could move the robot. {'; '.join(risks)}. Add {CONFIRM} to "
              "replay anyway (the planner still refuses replayed intents unless started with "
@@ -178,7 +191,7 @@ def replayed_message(recorded: RecordedMessage, hands_key: str) -> dict | None:
         message = recorded.message
     except RejectedMessage:
         return None
-    marked = {**message, REPLAY_MARK: True}
+    marked = {**message, wire.REPLAYED: True}
     if recorded.key == hands_key:
         marked["source"] = "replay"  # the contract's value for a replayed recording
     return marked

@@ -32,6 +32,20 @@ def test_an_episode_has_a_start_and_an_end_event_and_one_summary(drive):
     assert published[-2:] == ["episode/event", "episode/summary"]  # end, then the summary
 
 
+def test_an_episode_with_replayed_frames_has_a_summary_marked_replayed(drive):
+    d = drive()
+    d.hold(0.5, "grab")
+    d.empty(0.4)
+    d.bus.feed(keys.HANDS_FRAME, {"v": 1, "ts": T0 + d.now + 0.01, "seq": d.seq, "hands": [
+        open_hand()], "source": "replay", "device": "test", "replayed": True})
+    d.seq += 1
+    d.hold(0.5, "grab")
+    d.empty(0.4)
+    live, replayed = d.summaries
+    assert "replayed" not in live and replayed["replayed"] is True
+    wire.validate(replayed, wire.EPISODE_SUMMARY, "cbgo/episode/summary")
+
+
 def test_the_episode_ends_on_the_first_empty_frame_after_the_debounce(drive):
     d = drive(debounce_s=0.1)
     d.hold(0.3)

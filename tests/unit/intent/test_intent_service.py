@@ -112,6 +112,15 @@ def test_each_summary_publishes_an_intent_with_the_latest_scene(bus):
     assert intent["params"] == {"angle_deg": 90.0}
 
 
+def test_the_intent_of_a_replayed_episode_is_marked_replayed(bus):
+    bus.feed(keys.SCENE_STATE, example("scene/state"))
+    (_, live), = bus.feed(keys.EPISODE_SUMMARY, example("episode/summary"))
+    (_, replayed), = bus.feed(keys.EPISODE_SUMMARY,
+                              {**example("episode/summary"), "replayed": True})
+    assert "replayed" not in live and replayed["replayed"] is True
+    assert (replayed["action"], replayed["status"]) == (live["action"], live["status"])
+
+
 def test_a_summary_without_known_gestures_still_gets_an_intent(bus):
     bus.feed(keys.SCENE_STATE, example("scene/state"))
     summary = example("episode/summary", gestures={"names": ["wave"], "probs": [1.0]})

@@ -145,19 +145,22 @@ def test_only_sensor_and_person_keys_go_out_without_derived():
 
 @pytest.mark.parametrize("alive", [{"planner"}, {"dry-robot"}, {"mujoco-sim", "router"}])
 def test_derived_keys_while_a_planner_or_robot_is_alive_are_a_risk(alive):
-    (risk,) = replay.robot_risks(RECORDED, KEYS, alive)
+    (risk,) = replay.robot_risks(RECORDED, KEYS, alive, planner_refuses_replayed=True)
     assert "intent" in risk and sorted(alive - {"router"})[0] in risk
 
 
-def test_hand_frames_are_a_risk_only_where_the_whole_pipeline_to_the_planner_is_alive():
+def test_hand_frames_are_a_risk_only_where_a_planner_may_act_on_what_they_lead_to():
     sensors = RECORDED[:3]
-    assert replay.robot_risks(sensors, KEYS, {"router", "episode", "intent", "dry-robot"}) == []
-    assert replay.robot_risks(sensors, KEYS, {"planner", "dry-robot"}) == []
-    (risk,) = replay.robot_risks(sensors, KEYS, {"episode", "intent", "planner"})
-    assert "gestures" in risk
-    assert replay.robot_risks(["cbgo/gaze", "cbgo/user"], KEYS,
-                              {"episode", "intent", "planner", "dry-robot"}) == []
-    assert replay.robot_risks(RECORDED, KEYS, {"router", "web", "episode"}) == []
+    pipeline = {"episode", "intent", "planner"}
+    assert replay.robot_risks(sensors, KEYS, {"router", "episode", "intent", "dry-robot"},
+                              False) == []
+    assert replay.robot_risks(sensors, KEYS, {"planner", "dry-robot"}, False) == []
+    assert replay.robot_risks(sensors, KEYS, pipeline | {"dry-robot"}, True) == []
+    (risk,) = replay.robot_risks(sensors, KEYS, pipeline, False)
+    assert "--accept-replayed" in risk and "execute" in risk
+    assert replay.robot_risks(["cbgo/gaze", "cbgo/user"], KEYS, pipeline | {"dry-robot"},
+                              False) == []
+    assert replay.robot_risks(RECORDED, KEYS, {"router", "web", "episode"}, False) == []
 
 
 def test_a_second_hand_source_is_reported_once_and_counted():
