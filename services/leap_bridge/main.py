@@ -14,7 +14,9 @@ Behaviour (the contract is services/leap_bridge/README.md):
 - ``cbgo/user`` is published when the operator changes and every 2 s; the simulated user's
   ``cbgo/gaze`` follows its target (an object name resolved in the latest ``cbgo/scene/state``,
   or a point), with eye-tracking noise;
-- control verb ``@ctl/leap-bridge/play`` starts a scenario on demand (simulated source).
+- control verb ``@ctl/leap-bridge/play`` starts a scenario on demand (simulated source); its
+  static steps may hold any pose given as finger curls (`cbgo.simuser.scenario`), which is how
+  ``cbgo gestures record NAME --static --simulate CURLS`` teaches a gesture without a sensor.
 """
 
 from __future__ import annotations

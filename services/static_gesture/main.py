@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from cbgo import keys, wire
+from cbgo.config import data_dir
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.hands import features as F
@@ -233,8 +234,13 @@ class StaticGesture(Service):
                           classifier.model_id, path)
 
     def status_extra(self) -> dict:
-        """Adds the model, the hands classified and faded for moving, the ignored gestures."""
+        """Adds the model, the hands classified and faded for moving, the ignored gestures.
+
+        Also the data directory, where `cbgo gestures record` must write for the service to
+        load what it teaches.
+        """
         return {"model": self.classifier.describe() if self.classifier else None,
+                "data_dir": str(data_dir()),
                 "hands_classified": self.hands, "hands_moving": self.moving,
                 "ignored": list(self.settings.ignore)}
 

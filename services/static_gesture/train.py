@@ -28,7 +28,9 @@ left-hand space):
   stored in ``data_dir()/gestures/static/NAME.npz``: a new name becomes a new class (after the 8
   and before ``none``), a known name adds examples to that class. Few frames of one take are
   augmented to ``USER_MIN_ROWS`` rows by jittering them (half their own spread, at least 0.03 rad
-  and 1.5 mm), so that a new class is not a handful of points.
+  and 1.5 mm), so that a new class is not a handful of points. A new gesture whose fingers
+  are extended and curled as no gesture of the 8's are (horns) takes the ``none`` rows of that
+  pattern out of ``none`` (`without_claimed_none`).
 
 The recorded rows (the paper's and the HGR set's) also come once more with device- and
 person-style variation (``invariant.augment``: hand size 0.85–1.15, 0.05 rad per bone angle,
@@ -285,6 +287,46 @@ def simulate_off_vocabulary(count: int, rng: np.random.Generator) -> np.ndarray:
     return _features(rng, _shapes(rng, count), poses)
 
 
+CURLED_BEND = np.radians(90.0)  # a finger whose three joints bend more than this is curled
+
+
+def finger_patterns(x57: np.ndarray) -> np.ndarray:
+    """Returns (N, 4) whether index..pinky are extended (1), as `VOCABULARY_PATTERNS` reads."""
+    bends = invariant.bends(x57)[:, :15].reshape(-1, 5, 3)
+    return (bends[:, 1:].sum(-1) <= CURLED_BEND).astype(np.int64)
+
+
+def without_claimed_none(data: Dataset, user: list[UserGesture], new: list[str]) -> Dataset:
+    """Returns the data without the ``none`` rows whose finger pattern a new gesture claims.
+
+    A recorded gesture of a new name whose pattern (`finger_patterns`, most of its rows) is
+    none of the vocabulary's claims it: the simulated off-vocabulary hands and the HGR set's
+    unknown poses of that pattern (its "heavy" is horns) would otherwise teach the same hand
+    as no gesture, and renditions of the taught gesture other than the recorded ones would be
+    read as ``none`` (`tests/integration/test_static_gesture.py` teaches horns and checks
+    fresh renditions live).
+    """
+    if NONE not in data.names:
+        return data
+    claimed = set()
+    for g in user:
+        if g.name in new:
+            patterns, counts = np.unique(finger_patterns(g.x), axis=0, return_counts=True)
+            pattern = tuple(int(v) for v in patterns[counts.argmax()])
+            if pattern not in VOCABULARY_PATTERNS:
+                claimed.add(pattern)
+    if not claimed:
+        return data
+    none = data.y == data.names.index(NONE)
+    keep = ~(none & np.isin(_pattern_codes(finger_patterns(data.x)),
+                            _pattern_codes(np.array(sorted(claimed)))))
+    return replace(data, x=data.x[keep], y=data.y[keep], source=data.source[keep])
+
+
+def _pattern_codes(patterns: np.ndarray) -> np.ndarray:
+    return patterns @ np.array([8, 4, 2, 1])
+
+
 # --------------------------------------------------------------------------- user gestures
 
 
@@ -483,10 +525,11 @@ def build_dataset(options: TrainOptions, real: tuple | None = None,
         for x, y, src in [p for p in parts if p[2] is not None and _recorded(p[2])]:
             for _ in range(options.augment_copies):
                 parts.append((invariant.augment(x, rng, curl_deg=options.curl_deg), y, src))
-    return Dataset(
+    return without_claimed_none(Dataset(
         x=np.concatenate([p[0] for p in parts]), y=np.concatenate([p[1] for p in parts]),
         names=names, source=np.concatenate([np.broadcast_to(p[2], len(p[1])) for p in parts]),
-        user_gestures=[{"name": g.name, "rows": len(g.x), "takes": g.takes} for g in user])
+        user_gestures=[{"name": g.name, "rows": len(g.x), "takes": g.takes} for g in user]),
+        user, new)
 
 
 def _recorded(source) -> bool:

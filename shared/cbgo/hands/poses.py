@@ -12,6 +12,11 @@ Rules:
 - Poses are anatomical, so the same pose serves both sides (``build_hand`` mirrors left hands).
   The orientation in a pose (roll, pitch, yaw) is the one the recorded people held the gesture
   in; a caller changes it with ``HandPose.rotated``.
+- ``curl_pose`` builds any other hand pose from five finger curls (thumb..pinky, 0 straight ..
+  1 curled): each finger's joint angles, and their spread, are ``five``'s moved that far towards
+  ``grab``'s (a curled thumb lies over the curled fingers, as in a fist), the palm held as in
+  ``five``. It is how a gesture outside the vocabulary (horns: ``[1, 0, 1, 1, 0]``) is shown
+  without a sensor.
 """
 
 from __future__ import annotations
@@ -24,10 +29,17 @@ from cbgo.hands.model import PARAM_NAMES, HandPose, clip_to_limits
 from cbgo.hands.poses_file import POSES_FILE, default_shape_parameters, load_poses
 from cbgo.wire import STATIC_GESTURES
 
-__all__ = ["POSES_FILE", "STATIC_GESTURES", "correlated_normal", "default_shape_parameters",
-           "gesture_mean", "gesture_pose", "gesture_spread", "load_poses", "parameter_correlation"]
+__all__ = ["FINGER_NAMES", "POSES_FILE", "STATIC_GESTURES", "check_curls", "correlated_normal",
+           "curl_pose", "default_shape_parameters", "gesture_mean", "gesture_pose",
+           "gesture_spread", "load_poses", "parameter_correlation"]
 
 CLIP_Z = 2.0
+FINGER_NAMES = ("thumb", "index", "middle", "ring", "pinky")
+STRAIGHT, CURLED = "five", "grab"  # the calibrated poses a curl of 0 and of 1 take a finger from
+# Each finger's parameters in ``PARAM_NAMES`` order: the thumb's five, then four per finger.
+FINGER_BLOCKS = (slice(0, 5), slice(5, 9), slice(9, 13), slice(13, 17), slice(17, 21))
+SPREAD_PARAMS = (6, 10, 14, 18)  # the MCP abduction of index..pinky
+MAX_SPREAD = 2.0
 
 
 def _vector(name: str, key: str) -> np.ndarray:
@@ -96,3 +108,53 @@ def gesture_pose(name: str, rng: np.random.Generator, variation: float = 1.0) ->
     mean, spread = _vector(name, "mean_deg"), _vector(name, "spread_deg")
     z = correlated_normal(rng)
     return HandPose.from_vector(clip_to_limits(mean + z * spread * variation))
+
+
+def check_curls(curls, spread: float = 1.0) -> tuple[float, ...]:
+    """Returns five finger curls as floats, or raises ValueError saying what they must be.
+
+    Args:
+        curls: thumb, index, middle, ring, pinky; each 0 (straight) .. 1 (curled).
+        spread: how far apart the fingers are, 0 (together) .. ``MAX_SPREAD`` (1: as curled
+            and straight fingers are when relaxed).
+    """
+    try:
+        values = () if isinstance(curls, (str, bytes)) else tuple(float(c) for c in curls)
+    except (TypeError, ValueError):
+        values = ()
+    if len(values) != len(FINGER_NAMES) or not all(0.0 <= c <= 1.0 for c in values):
+        raise ValueError(f"curls {curls!r}: give 5 numbers, {', '.join(FINGER_NAMES)}, each 0 "
+                         "(straight) .. 1 (curled); e.g. [1, 0, 1, 1, 0] for horns")
+    if not isinstance(spread, (int, float)) or not 0.0 <= float(spread) <= MAX_SPREAD:
+        raise ValueError(f"spread={spread}: must be within 0 (fingers together) .. "
+                         f"{MAX_SPREAD:g} (1: relaxed)")
+    return values
+
+
+def curl_pose(curls, rng: np.random.Generator | None = None, variation: float = 1.0,
+              spread: float = 1.0) -> HandPose:
+    """Samples a rendition of a hand pose given as finger curls (see the module rules).
+
+    Args:
+        curls: thumb, index, middle, ring, pinky; each 0 (straight) .. 1 (curled).
+        rng: the random generator; None gives the mean pose.
+        variation: scales the spread of the renditions, each finger's between ``five``'s and
+            ``grab``'s calibrated spread as its curl is (0 gives the mean pose).
+        spread: scales how far apart the fingers are (`check_curls`).
+
+    Returns:
+        A pose with joint angles inside the limits.
+
+    Raises:
+        ValueError: curls or spread out of range.
+    """
+    values = check_curls(curls, spread)
+    straight, curled = _vector(STRAIGHT, "mean_deg"), _vector(CURLED, "mean_deg")
+    sd_straight, sd_curled = _vector(STRAIGHT, "spread_deg"), _vector(CURLED, "spread_deg")
+    mean, sd = straight.copy(), sd_straight.copy()
+    for block, t in zip(FINGER_BLOCKS, values, strict=True):
+        mean[block] = (1.0 - t) * straight[block] + t * curled[block]
+        sd[block] = (1.0 - t) * sd_straight[block] + t * sd_curled[block]
+    mean[list(SPREAD_PARAMS)] *= float(spread)
+    z = np.zeros(len(PARAM_NAMES)) if rng is None else correlated_normal(rng)
+    return HandPose.from_vector(clip_to_limits(mean + z * sd * variation))

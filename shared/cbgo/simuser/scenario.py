@@ -23,13 +23,23 @@ Besides gestures, a step may be an **idle motion** (`IDLE_MOTIONS`): what a hand
 gestures that is no gesture — ``drift`` (a slow wander), ``wobble`` (a small 2–4 Hz shake),
 ``reposition`` (a slow move elsewhere in the field), ``turn`` (a slow palm roll and back).
 
-Rules: gesture names are the wire vocabulary (8 static, 5 dynamic); unknown keys are errors
-(a typo must not silently change a scenario); every error names the episode and the field.
+A static step may also give the pose as **finger curls** (``curls``: thumb, index, middle,
+ring, pinky, each 0 straight .. 1 curled; ``spread`` how far apart, 1 relaxed): any hand pose,
+so a gesture outside the vocabulary can be shown and taught without a sensor
+(`cbgo.hands.poses.curl_pose`)::
+
+      - gestures:
+          - {gesture: horns, curls: [1, 0, 1, 1, 0], hold_s: 3}
+
+Rules: gesture names are the wire vocabulary (8 static, 5 dynamic), or any name
+(`CURL_NAME`) for a step with ``curls``; unknown keys are errors (a typo must not silently
+change a scenario); every error names the episode and the field.
 """
 
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -37,12 +47,14 @@ from typing import Any
 import yaml
 
 from cbgo.errors import ConfigError
+from cbgo.hands.poses import check_curls
 from cbgo.wire import DYNAMIC_GESTURES, STATIC_GESTURES
 
 BUNDLED = Path(__file__).parent / "scenarios"
 
 
 IDLE_MOTIONS = ("drift", "wobble", "reposition", "turn")
+CURL_NAME = re.compile(r"^[a-z][a-z0-9_]{0,31}$")  # a pose given by curls: any such name
 
 @dataclass
 class UserStyle:
@@ -52,9 +64,9 @@ class UserStyle:
     side: str = "right"         # which hand gestures
     # Speed and amplitude default to the middle of the simulated population whose swipes match
     # real people's (the dynamic-gesture service's training range, 0.85-1.6 and 0.75-1.5:
-    # `cbgo bench dynamic --realism DIR` compares them with the SHREC'17 train split). Until
-    # stop 55 they were 1.0, that population's slow, small end: a default user's swipes
-    # peaked at 372 mm/s (median), real people's at 474 (`--realism DIR --ranges default`).
+    # `cbgo bench dynamic --realism DIR` compares them with the SHREC'17 train split), so a
+    # default user swipes like a typical person: median peak speed 455 mm/s, real people's
+    # 474 (`cbgo bench dynamic --realism DIR --ranges default`).
     speed: float = 1.2          # >1 moves faster (a swipe takes about user.SWIPE_S / speed)
     amplitude: float = 1.1      # size of strokes relative to user.STROKE_MM (160 mm)
     curvature: float = 0.08     # sideways bow of strokes, fraction of their length
@@ -98,6 +110,8 @@ class GestureStep:
     hold_s: float | None = None     # static: override the style's hold time
     angle_deg: float = 90.0         # rotate: palm roll angle
     aperture_mm: float | None = None  # pinch: thumb-index distance to show
+    curls: list[float] | None = None  # static: the pose as finger curls, thumb..pinky, 0..1
+    spread: float = 1.0             # with curls: how far apart the fingers are (1: relaxed)
 
     @property
     def dynamic(self) -> bool:
@@ -153,10 +167,29 @@ def _build(cls, data: Any, where: str):
 
 def _step(item: Any, where: str) -> GestureStep:
     step = _build(GestureStep, {"gesture": item} if isinstance(item, str) else item, where)
+    if step.curls is not None:
+        return _curl_step(step, where)
+    if step.spread != 1.0:
+        raise ConfigError(f"{where}: spread shapes a pose given by curls; give curls too")
     if step.gesture not in STATIC_GESTURES + DYNAMIC_GESTURES + IDLE_MOTIONS:
         raise ConfigError(f"{where}: unknown gesture {step.gesture!r}; known: "
                           f"{', '.join(STATIC_GESTURES + DYNAMIC_GESTURES)} and the idle "
-                          f"motions {', '.join(IDLE_MOTIONS)}")
+                          f"motions {', '.join(IDLE_MOTIONS)}; or any name with its "
+                          "finger curls, e.g. {gesture: horns, curls: [1, 0, 1, 1, 0]}")
+    return step
+
+
+def _curl_step(step: GestureStep, where: str) -> GestureStep:
+    """Checks a step that gives its pose as finger curls (a held pose of any name)."""
+    if not isinstance(step.gesture, str) or not CURL_NAME.match(step.gesture) or (
+            step.gesture in DYNAMIC_GESTURES + IDLE_MOTIONS):
+        raise ConfigError(f"{where}: gesture {step.gesture!r} with curls: name the held pose "
+                          "with 1-32 lower-case letters, digits and '_' (not a stroke or idle "
+                          "motion)")
+    try:
+        step.curls = list(check_curls(step.curls, step.spread))
+    except ValueError as e:
+        raise ConfigError(f"{where}: {e}") from None
     return step
 
 
@@ -174,6 +207,38 @@ def _episode(data: Any, index: int, users: dict[str, UserStyle]) -> Episode:
             and all(isinstance(v, (int, float)) for v in gaze)):
         raise ConfigError(f"{where}.gaze: expected an object name, [x, y, z] (m) or null")
     return episode
+
+
+def hold_scenario(gesture: str, curls: list[float] | None = None, takes: int = 1,
+                  hold_s: float = 3.0, spread: float = 1.0, pause_s: float = 1.0,
+                  seed: int = 0) -> dict:
+    """Returns scenario data in which the user holds one pose `takes` times.
+
+    The hand enters, forms the pose, holds it `hold_s` seconds and leaves; `pause_s` seconds
+    without a hand come before each take. What `cbgo gestures record NAME --simulate POSE`
+    sends to leap-bridge's ``play``: a demonstration without a sensor.
+
+    Args:
+        gesture: a static gesture of the vocabulary, or any name with `curls`.
+        curls: the pose as finger curls (thumb..pinky, 0 straight .. 1 curled), or None for
+            the vocabulary gesture's own pose.
+        takes: how many times the pose is shown.
+        hold_s: how long each is held.
+        spread: with curls: how far apart the fingers are (1: relaxed).
+        pause_s: seconds without a hand before each take.
+        seed: the scenario's seed (the person's hand and their renditions).
+
+    Raises:
+        ConfigError: the same errors as a scenario file with that step.
+    """
+    step: dict[str, Any] = {"gesture": gesture, "hold_s": float(hold_s)}
+    if curls is not None:
+        step.update(curls=[float(c) for c in curls], spread=float(spread))
+    data = {"name": f"hold-{gesture}", "seed": int(seed),
+            "episodes": [{"gestures": [step], "gaze": None, "pause_s": float(pause_s)}
+                         for _ in range(max(1, int(takes)))]}
+    parse_scenario(data, f"hold {gesture}")  # the caller's mistakes are found here
+    return data
 
 
 def parse_scenario(data: Any, source: str = "scenario") -> Scenario:

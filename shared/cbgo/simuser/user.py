@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from cbgo.hands.model import HandShape, blend, build_hand, neutral_pose
-from cbgo.hands.poses import gesture_pose
+from cbgo.hands.poses import curl_pose, gesture_pose
 from cbgo.simuser.motion import (
     CENTRE_MM,
     ENTRY_MM,
@@ -40,8 +40,7 @@ SWIPE_DIRECTIONS = {
 # How long a swipe is each way (`swipe_way`), relative to the user's amplitude: real people
 # swipe farther across the body (a right hand to the left) than outward, and up and down shorter
 # still (`cbgo bench dynamic --realism DIR --users 24`'s "by way" table, SHREC'17 train split,
-# medians: 235, 194, 153 and 131 mm; simulated 235, 195, 158, 127). Until stop 51 every way was
-# as long, but down 0.85 times.
+# medians: 235, 194, 153 and 131 mm; simulated 235, 195, 158, 127).
 SWIPE_WAY_LENGTH = {"across": 1.35, "outward": 1.13, "up": 0.96, "down": 0.64}
 
 
@@ -65,26 +64,23 @@ RETURN_REACH_RANGE = (0.4, 1.8)
 
 # How long a 160 mm swipe (`STROKE_MM`) of a user of speed 1 takes (log-normal around it, one
 # swipe to the next), fitted to the SHREC'17 train split's swipes by the speed the service reads
-# (`cbgo bench dynamic --realism DIR --users 24`, stop 51): peak speed 476 [307, 700] mm/s
-# against real 474 [283, 734] (median [10th, 90th percentile]). Real swipes still last longer
-# (0.80 s against 0.55): their paths wander 1.5 times their length, simulated ones 1.2. Until
-# stop 48 a swipe took 0.45 s, 0.9-1.1 times that: half as long as real ones, 1.6 times as fast.
+# (`cbgo bench dynamic --realism DIR --users 24`): peak speed 476 [307, 700] mm/s against
+# real 474 [283, 734] (median [10th, 90th percentile]). Real swipes last longer (0.80 s
+# against 0.55): their paths wander 1.5 times their length, simulated ones 1.2.
 SWIPE_S = 0.78
 SWIPE_S_LOG_SD = 0.25
 
 # How much a swipe's length differs from the user's amplitude: log-normal with SD
 # `UserStyle.length_spread`, clipped to this range, fitted with the users' amplitudes to the
 # SHREC'17 train split (`cbgo bench dynamic --realism DIR --users 24`: SD of the log length
-# within a person 0.38, between people 0.20; simulated 0.39 and 0.19). Until stop 49 a user's
-# swipes were 0.9-1.1 times their amplitude, and the simulated people differed twice as much as
-# real ones.
+# within a person 0.38, between people 0.20; simulated 0.39 and 0.19): a person's swipes
+# differ from one to the next far more than people differ from each other.
 SWIPE_LENGTH_RANGE = (0.45, 2.2)
 # A swipe's duration grows as its length ** this, whether it is short because the person makes
 # small strokes or because this one is: a real short swipe is quick (the same bench's "peak
 # speed by length": log peak speed grows 0.53 per log length, real; 0.50 simulated; swipes of
-# 20-70 mm under 200 mm/s: real 5 %, simulated 33 % of only 11). With 0.3 of the length spread
-# alone (stop 50) 60 % of them were, too slow for the segmenter's speed gate, which real
-# people's are not.
+# 20-70 mm under 200 mm/s: real 5 %, simulated 33 % of only 11). A smaller exponent makes
+# short swipes too slow for the segmenter's speed gate, which real people's are not.
 SWIPE_S_LENGTH_EXPONENT = 0.55
 SWIPE_MM_MAX = 330.0  # the field's width less a margin: longer swipes would leave it
 
@@ -198,7 +194,10 @@ class SimulatedUser:
 
     def _static(self, builder: TimelineBuilder, step: GestureStep, style: UserStyle,
                 rng: np.random.Generator) -> None:
-        pose = gesture_pose(step.gesture, rng, variation=style.pose_variation)
+        if step.curls is not None:  # any pose, given as finger curls
+            pose = curl_pose(step.curls, rng, style.pose_variation, step.spread)
+        else:
+            pose = gesture_pose(step.gesture, rng, variation=style.pose_variation)
         builder.move_to(CENTRE_MM + rng.normal(0, 10, 3), 0.25 / style.speed, "pose",
                         step.gesture)
         builder.key_pose(pose)
