@@ -187,7 +187,7 @@ class DynamicGesture(Service):
                 self.ctx.counters.error("reload", str(e))
 
     def status_extra(self) -> dict:
-        """Adds the templates in use and the classification cost."""
+        """Adds the templates in use, the data directory and the classification cost."""
         ms = np.asarray(self.classify_ms) if self.classify_ms else np.zeros(1)
         return {"gestures": [{"name": t.name, "source": t.source, "demos": t.n_demos}
                              for t in self.library.templates],
@@ -195,6 +195,8 @@ class DynamicGesture(Service):
                 "tracking_jumps": self.segmenter.jumps,
                 "returns": self.returns.returns,
                 "windows": self.windows, "reloads": self.reloads,
+                # where taught gestures are stored: `cbgo gestures record` must write there
+                "data_dir": str(data_dir()),
                 "dtw": self.classifier.implementation,
                 "second_opinion": self.classifier.second_opinion,
                 "classify_ms": {"p50": float(np.median(ms)),
