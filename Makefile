@@ -3,6 +3,7 @@
 #   make test   creates .venv, installs cbgo with test extras, runs ruff and the test suite
 #   make test-fast   ruff and the fast tiers only (unit and deploy tests: no processes), ~3 min
 #   make test-compose   the compose files on a real Docker engine (deploy/ci/compose-test.sh)
+#   make docs        regenerate the generated parts of the docs (README tables, examples, schemas)
 # torch is installed first, pinned to the local CPU wheel, so that nothing pulls a CUDA build.
 
 VENV ?= .venv
@@ -10,7 +11,7 @@ PY := $(VENV)/bin/python
 TORCH := torch==2.13.0
 STAMP := $(VENV)/.cbgo-installed
 
-.PHONY: demo test test-fast test-compose lint install clean
+.PHONY: demo test test-fast test-compose lint install clean docs docs-check
 
 $(STAMP): pyproject.toml setup.py tools/pyproject.toml
 	python3 -m venv $(VENV)
@@ -45,6 +46,14 @@ test-fast: $(STAMP)
 # where it can (root), builds the image or reuses it (hash of its inputs), runs tests/compose.
 test-compose: $(STAMP)
 	PY=$(PY) bash deploy/ci/compose-test.sh
+
+# The generated parts of the docs: README key and settings tables, protocol.md's examples,
+# docs/schemas, the Foxglove layout (cbgo_tools.docs). The tests say when one is stale.
+docs: $(STAMP)
+	$(PY) -m cbgo_tools.docs
+
+docs-check: $(STAMP)
+	$(PY) -m cbgo_tools.docs --check
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check shared services tools tests docs

@@ -12,7 +12,7 @@ JSON message, as Foxglove's JSON encoding writes it. `to_json` writes a wire mes
 `from_json` reads it back with the message's schema, which marks those strings
 (``contentEncoding: base64``), so a message survives msgpack -> JSON -> msgpack unchanged.
 
-``python -m cbgo.json_schema DIR`` writes them as ``DIR/<key with / as .>.<role>.json``; the
+``make docs`` writes them as ``docs/schemas/<key with / as .>.<role>.json``; the
 copies in ``docs/schemas/`` are checked against this module by the tests.
 """
 
@@ -21,7 +21,6 @@ from __future__ import annotations
 import base64
 import binascii
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -158,10 +157,3 @@ def write_all(folder: Path) -> list[Path]:
         path.write_text(json.dumps(schema, indent=2) + "\n")
         paths.append(path)
     return paths
-
-
-if __name__ == "__main__":
-    if len(sys.argv) != 2 or sys.argv[1].startswith("-"):
-        sys.exit("usage: python -m cbgo.json_schema DIR   (writes one schema per key and role)")
-    for written in write_all(Path(sys.argv[1])):
-        print(written)

@@ -5,7 +5,7 @@ summary, its place in the pipeline, what it replaces, the keys it reads, writes 
 its service class (and so its settings), and the user-facing tools it brings (figures drawn from
 recordings, gestures by demonstration). `cbgo.registry` discovers the manifests (no table of
 services in `shared/`), and from them come `cbgo up --list`, `cbgo plot`, `cbgo gestures`, and
-the key and config tables of each service's README (`cbgo.readme_tables`). Benchmarks,
+the key and config tables of each service's README (`make docs`). Benchmarks,
 trainers and data-set converters are offline tools: they live in `tools/` (the ``cbgo_tools``
 package, outside the wheel), which declares them in ``cbgo_tools.registry``. A test holds
 each manifest's keys against what the service's ``setup()`` declares.

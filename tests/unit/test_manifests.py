@@ -6,8 +6,9 @@ import re
 
 import pytest
 
-from cbgo import readme_tables, registry
+from cbgo import registry
 from cbgo.testing import FakeBus
+from cbgo_tools.docs import readme_tables
 
 # settings a unit test needs so that nothing binds a fixed port of this host
 QUIET_SETTINGS = {"web": {"http_port": 0}, "foxglove-bridge": {"ws_port": 0}}
@@ -99,7 +100,7 @@ def named_keys(body: str) -> set[str]:
 def test_the_readme_tables_are_generated_from_the_manifest_and_in_step(manifest):
     text = readme_tables.readme_of(manifest).read_text()
     assert readme_tables.updated(text, manifest) == text, (
-        "run: python -m cbgo.readme_tables")
+        "run: make docs")
 
 
 @pytest.mark.parametrize("manifest", registry.SERVICES, ids=lambda m: m.name)

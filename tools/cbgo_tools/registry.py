@@ -41,6 +41,12 @@ TRAINERS: dict[str, tuple[str, str]] = {
               "the simulated hand's poses, calibrated against the real Leap recordings"),
 }
 
+# Figures beside the services' own (`cbgo plot NAME`).
+FIGURES: dict[str, tuple[str, str]] = {
+    "foxglove-scene": ("cbgo_tools.docs.foxglove_figure",
+                       "one moment of a JSON recording's foxglove/scene, drawn with matplotlib"),
+}
+
 # Which service each benchmark and trainer measures or trains (`cbgo up --list` shows them).
 SERVICE_OF: dict[str, str] = {
     "bridge": "leap-bridge", "static": "static-gesture", "dynamic": "dynamic-gesture",

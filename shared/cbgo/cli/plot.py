@@ -1,8 +1,10 @@
 """Draw figures from recordings; each figure's module parses its own options.
 
 Figures:
-    episode   the paper's episode figure: gesture likelihoods (static, dynamic), evidence,
-              hand visibility and triggers of one episode (cbgo.services.episode.plot)
+    episode          the paper's episode figure: gesture likelihoods (static, dynamic),
+                     evidence, hand visibility and triggers of one episode
+    foxglove-scene   one moment of a JSON recording's foxglove/scene drawn with matplotlib
+                     (the offline tools of a checkout)
 
 Examples::
 
@@ -20,9 +22,22 @@ import importlib
 
 from cbgo import registry
 
-# figure -> (module, one-line summary), from the services' manifests (``figures``); the module
-# has add_arguments(parser) and run(args).
-FIGURES = registry.tools("figures")
+
+def _figures() -> dict[str, tuple[str, str]]:
+    """Returns figure -> (module, one-line summary), each module with add_arguments and run.
+
+    The services' figures (their manifests' ``figures``), and the offline tools' where a
+    checkout has them.
+    """
+    figures = registry.tools("figures")
+    try:
+        from cbgo_tools.registry import FIGURES as offline
+    except ModuleNotFoundError:  # an installed wheel: no offline tools
+        offline = {}
+    return {**figures, **offline}
+
+
+FIGURES = _figures()
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

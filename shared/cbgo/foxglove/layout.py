@@ -2,7 +2,7 @@
 
 Built with the foxglove-sdk's layout API (`foxglove.layouts`), so the JSON is in the format
 Foxglove imports (*Import layout*). The shipped copy is ``deploy/foxglove/layout.json``;
-``python -m cbgo.foxglove.layout FILE`` writes it again and the tests check the copy matches.
+``make docs`` writes it again and the tests check the copy matches.
 
 Panels: a 3D panel following the robot base frame with ``foxglove/scene`` and the frame
 transforms; a plot of the static gesture probabilities (one series per class, in the order the
@@ -14,8 +14,6 @@ keys), so message paths quote them: ``"cbgo/gestures/static".probs[0]``.
 from __future__ import annotations
 
 import json
-import sys
-from pathlib import Path
 
 from cbgo import wire
 from cbgo.foxglove.derive import LOG_TOPIC, SCENE_TOPIC, TRANSFORMS_TOPIC
@@ -61,10 +59,3 @@ def build(prefix: str = "cbgo"):
 def layout_json(prefix: str = "cbgo") -> str:
     """Returns the layout as indented JSON text (what ``deploy/foxglove/layout.json`` holds)."""
     return json.dumps(json.loads(build(prefix).to_json()), indent=2) + "\n"
-
-
-if __name__ == "__main__":
-    if len(sys.argv) != 2 or sys.argv[1].startswith("-"):
-        sys.exit("usage: python -m cbgo.foxglove.layout FILE   (writes cbgo's Foxglove layout)")
-    Path(sys.argv[1]).write_text(layout_json())
-    print(sys.argv[1])

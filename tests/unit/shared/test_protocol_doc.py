@@ -7,7 +7,6 @@ An example is a ```json block preceded by a marker line ``<!-- example: <suffix>
 """
 
 import base64
-import importlib.util
 import json
 import re
 from pathlib import Path
@@ -17,10 +16,10 @@ import pytest
 
 from cbgo import json_schema, wire
 from cbgo.examples import EXAMPLE_KEYS
+from cbgo_tools.docs import protocol_examples
 
 ROOT = Path(__file__).resolve().parents[3]
 DOC = ROOT / "docs" / "protocol.md"
-GENERATOR = ROOT / "docs" / "gen_protocol_examples.py"
 STATUS = "@ctl/status"  # the status reply of every service, not a contract key
 MARKER = re.compile(r"^<!-- example: (\S+) (\S+) -->$")
 BYTES = re.compile(r"^<bytes: (\d+)>$")
@@ -103,12 +102,8 @@ def test_a_wrong_example_in_the_protocol_doc_would_be_caught():
 
 
 def test_the_examples_in_the_protocol_doc_are_the_ones_cbgo_examples_generates():
-    spec = importlib.util.spec_from_file_location("gen_protocol_examples", GENERATOR)
-    generator = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(generator)
     text = DOC.read_text()
-    assert generator.update(text) == text, (
-        "docs/protocol.md is stale; run: python docs/gen_protocol_examples.py")
+    assert protocol_examples.update(text) == text, "docs/protocol.md is stale; run: make docs"
 
 
 # --------------------------------------------------------------------- JSON Schemas (docs/schemas)
@@ -129,7 +124,7 @@ def test_the_json_schemas_in_docs_are_the_ones_generated_from_the_wire():
     generated = {json_schema.file_name(s, r): schema
                  for (s, r), schema in json_schema.every_schema().items()}
     on_disk = {p.name: json.loads(p.read_text()) for p in SCHEMA_DIR.glob("*.json")}
-    assert on_disk == generated, "run: python -m cbgo.json_schema docs/schemas"
+    assert on_disk == generated, "docs/schemas is stale; run: make docs"
 
 
 @pytest.mark.parametrize(("change", "why"), [

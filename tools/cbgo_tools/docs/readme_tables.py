@@ -10,17 +10,12 @@ Each ``services/<svc>/README.md`` holds two generated blocks, between markers:
 The prose around them (what each key is for, when it is sent) stays hand-written; a test
 checks that the blocks are in step and that the prose tables name the same keys.
 
-    python -m cbgo.readme_tables           # rewrite the blocks of every service README
-    python -m cbgo.readme_tables --check   # exit 1 and name the READMEs that are out of step
-
-A tool of the source checkout (the READMEs are not installed with the package).
+``make docs`` rewrites the blocks of every service README (`cbgo_tools.docs`).
 """
 
 from __future__ import annotations
 
-import argparse
 import re
-import sys
 from pathlib import Path
 
 from cbgo import registry
@@ -28,10 +23,10 @@ from cbgo.config import settings_rows
 from cbgo.keys import Topic
 from cbgo.manifest import Manifest
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 PROTOCOL = REPO / "docs" / "protocol.md"
 BLOCKS = ("keys", "settings")
-GENERATED = "generated from the manifest by `python -m cbgo.readme_tables`; edit the manifest"
+GENERATED = "generated from the manifest by `make docs`; edit the manifest"
 
 
 def readme_of(manifest: Manifest) -> Path:
@@ -126,26 +121,15 @@ def updated(text: str, manifest: Manifest) -> str:
     return text
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Rewrites (or checks) the generated blocks of every service README."""
-    parser = argparse.ArgumentParser(prog="python -m cbgo.readme_tables",
-                                     description=__doc__.split("\n\n")[0])
-    parser.add_argument("--check", action="store_true",
-                        help="change nothing; exit 1 if a README is out of step")
-    args = parser.parse_args(argv)
+def stale_readmes(write: bool) -> list[Path]:
+    """Returns the service READMEs whose generated blocks are out of step (rewritten if write)."""
     stale = []
     for manifest in registry.SERVICES:
         path = readme_of(manifest)
         text = path.read_text()
         new = updated(text, manifest)
         if new != text:
-            stale.append(str(path.relative_to(REPO)))
-            if not args.check:
+            stale.append(path)
+            if write:
                 path.write_text(new)
-    verb = "out of step" if args.check else "rewritten"
-    print(f"{len(stale)} README(s) {verb}" + (": " + ", ".join(stale) if stale else ""))
-    return 1 if args.check and stale else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    return stale

@@ -7,7 +7,7 @@ SceneUpdates of a file up to the chosen moment (each entity replaced by its newe
 the 3D panel does) and draws the latest version of every entity.
 
     cbgo export out/demo-.../session.mcap -o foxglove.mcap
-    python docs/gen_foxglove_figure.py foxglove.mcap docs/foxglove-scene.png [--at SECONDS]
+    cbgo plot foxglove-scene foxglove.mcap docs/foxglove-scene.png [--at SECONDS]
 
 Without ``--at`` the moment is the last one at which hands, objects and a target were all in
 view (else the last with hands).
@@ -109,13 +109,18 @@ def draw(entities: dict, ax) -> None:
             ax.text(*_xyz(t["pose"]["position"]), t["text"], color="black", fontsize=7)
 
 
-def main() -> None:
-    """Parses the arguments, draws, writes the PNG."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("recording", type=Path)
-    parser.add_argument("output", type=Path)
-    parser.add_argument("--at", type=float, default=None, metavar="SECONDS")
-    args = parser.parse_args()
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Adds the recording, the output and the moment."""
+    parser.add_argument("recording", type=Path, help="a JSON MCAP (cbgo export, cbgo record "
+                                                     "--encoding json)")
+    parser.add_argument("output", type=Path, help="the PNG to write")
+    parser.add_argument("--at", type=float, default=None, metavar="SECONDS",
+                        help="seconds into the file [the last moment with hands, objects and "
+                             "a target]")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Draws the chosen moment and writes the PNG."""
     t, entities = pick(args.recording, args.at)
     fig = plt.figure(figsize=(8, 6.5))
     ax = fig.add_subplot(projection="3d")
@@ -135,7 +140,4 @@ def main() -> None:
     fig.tight_layout()
     fig.savefig(args.output, dpi=110)
     print(f"{args.output}: moment {t:.3f} s, entities {sorted(entities)}")
-
-
-if __name__ == "__main__":
-    main()
+    return 0

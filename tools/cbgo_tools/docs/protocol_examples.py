@@ -7,18 +7,14 @@ rendered as JSON (bytes as ``"<bytes: N>"``, as `cbgo.codec` shows them). The on
 is not a contract key, ``@ctl/status reply``, gets a service status built by the real
 `cbgo.runtime.Context.status()` with the machine-specific fields pinned.
 
-Run it after changing `cbgo.examples` or the runtime's status reply::
-
-    .venv/bin/python docs/gen_protocol_examples.py          # rewrite docs/protocol.md
-    .venv/bin/python docs/gen_protocol_examples.py --check  # exit 1 if the doc is stale
+``make docs`` runs it (`cbgo_tools.docs`) after a change of `cbgo.examples` or of the
+runtime's status reply.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +25,7 @@ from cbgo.errors import RejectedMessage
 from cbgo.examples import example
 from cbgo.runtime import Context, Service
 
-DOC = Path(__file__).with_name("protocol.md")
+DOC = Path(__file__).resolve().parents[3] / "docs" / "protocol.md"
 TS = 1763765460.0  # a fixed time stamp (2025-11-21T22:51:00Z), so the doc does not churn
 WIDTH = 128  # containers that fit in this many columns stay on one line
 STATUS = "@ctl/status"
@@ -101,22 +97,12 @@ def update(text: str) -> str:
                      + m.group(5), text)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Rewrites docs/protocol.md, or with --check reports whether it is stale."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true",
-                        help="change nothing; exit 1 if the doc's examples are stale")
-    args = parser.parse_args(argv)
-    old = DOC.read_text()
-    new = update(old)
-    if args.check:
-        if new != old:
-            print(f"{DOC} is stale; run: python {Path(__file__).name}", file=sys.stderr)
-            return 1
-        return 0
-    DOC.write_text(new)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+def stale_protocol(write: bool) -> list[Path]:
+    """Returns [docs/protocol.md] if its examples are out of step (rewritten if write), else []."""
+    text = DOC.read_text()
+    new = update(text)
+    if new == text:
+        return []
+    if write:
+        DOC.write_text(new)
+    return [DOC]
