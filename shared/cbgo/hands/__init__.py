@@ -9,8 +9,7 @@ Modules:
 - ``poses``: the 8 static gestures as calibrated mean poses and spreads (``gesture_pose``).
 - ``poses.json`` is fitted to the real recordings by ``cbgo train hands`` (an offline tool).
 - ``data``: the vendored real recordings (``load_real_features``).
-- ``leapjs``: Leap Motion frames in LeapJS's JSON format as contract hands (``to_frames``).
 
-Rule: everything here is pure computation on numpy (torch only for the calibration); nothing
+Rule: everything here is pure computation on numpy (the calibration is an offline tool); nothing
 touches Zenoh. ``cbgo bench hands`` measures how real the simulated hands look.
 """

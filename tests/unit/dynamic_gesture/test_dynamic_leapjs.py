@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from cbgo import keys, wire
-from cbgo.hands import leapjs as hands_leapjs
 from cbgo.services.dynamic_gesture.stroke import Segmenter
 from cbgo_tools.data import leapjs
+from cbgo_tools.data import leapjs_frames as hands_leapjs
 from cbgo_tools.dynamic_gesture import streams
 from cbgo_tools.dynamic_gesture.trials import leapjs_trial
 

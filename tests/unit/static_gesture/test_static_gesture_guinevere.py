@@ -8,13 +8,13 @@ import json
 import numpy as np
 import pytest
 
-from cbgo.hands.leapjs import JOINTS
 from cbgo.hands.model import HandShape, build_hand
 from cbgo.hands.poses import gesture_pose
 from cbgo.recording import read_recording
 from cbgo.services.static_gesture.classifier import StaticClassifier, default_model_path
 from cbgo.wire import decode
 from cbgo_tools.data import guinevere
+from cbgo_tools.data.leapjs_frames import JOINTS
 from cbgo_tools.static_gesture import takes
 
 

@@ -25,8 +25,8 @@ Which poses are scored, as what (`POSES`), and why the others are not:
   apart (the paper's pinch holds the last three fingers open, an ok sign). Scoring them as
   ours would measure the labels, not the model.
 
-Frames are converted by `cbgo.hands.leapjs` (axes, units and bones written down there) and
-written as MCAP recordings of ``hands/frame`` (`cbgo.recording`), one per take, named
+Frames are converted by `cbgo_tools.data.leapjs_frames` (axes, units and bones written down
+there) and written as MCAP recordings of ``hands/frame`` (`cbgo.recording`), one per take, named
 ``LABEL-POSE-TAKE.mcap``; ``cbgo bench static`` scores them when they are in the cache
 (`cached_takes`), as ``--takes`` scores a user's own takes (`takes`). A take missing from
 a copy is not scored; one that cannot be read is skipped with a line saying why.
@@ -51,8 +51,8 @@ import numpy as np
 
 from cbgo import keys, wire
 from cbgo.config import cache_dir
-from cbgo.hands.leapjs import to_frames
 from cbgo.recording import Recorder
+from cbgo_tools.data.leapjs_frames import to_frames
 
 POSES = {"point-index": "point", "thumb": "thumbsup", "flat": "five", "idle": "idle"}
 """Guinevere's pose folders → the label a take is scored as (``idle``: an unknown pose)."""

@@ -12,7 +12,7 @@ is fitted, tuned or selected on it.
 
 Conversion (every assumption written down):
 
-- **Frames.** As `cbgo.hands.leapjs` converts LeapJS frames (axes, units, time and bones
+- **Frames.** As `cbgo_tools.data.leapjs_frames` converts LeapJS frames (axes, units, time and bones
   are written down there): nothing is moved or turned.
 - **Labels.** A file ``NAME-TAKE.json`` in a person's folder; ``NAME`` may carry a variant
   after ``#`` (``swipe_left#palm``, ``swipe_up#index``). The swipes map to ours; ``turn_*``
@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from cbgo.config import cache_dir
-from cbgo.hands.leapjs import to_frames, vector
+from cbgo_tools.data.leapjs_frames import to_frames, vector
 
 
 @dataclass(frozen=True)
