@@ -88,11 +88,13 @@ class EpisodeBuilder:
         self.labels: dict[tuple[int, str], str] = {}
         self.windows: list[Window] = []
         self.gaze: list[list[float]] = list(gaze or [])
+        self.replayed = False  # it has frames of a recording (`cbgo replay`)
 
     # ------------------------------------------------------------------ input
 
     def add_frame(self, frame: dict, to_base: np.ndarray | None) -> None:
-        """Keeps the geometry of a frame's hands."""
+        """Keeps the geometry of a frame's hands, and whether the frame was replayed."""
+        self.replayed |= frame.get(wire.REPLAYED) is True
         samples = [hand_sample(frame["ts"], frame["seq"], h, to_base) for h in frame["hands"]]
         self.frames[frame["seq"]] = (frame["ts"], samples)
         while len(self.frames) > self.settings.max_frames:
@@ -201,8 +203,11 @@ class EpisodeBuilder:
                       if self.evidence.is_gesture(n)]
         names, probs = gesture_vector([t.snapshot for t in triggers], vocabulary)
         focus, source = self.focus()
-        return keys.EPISODE_SUMMARY.message(ts=now, episode=self.episode, user=user,
+        summary = keys.EPISODE_SUMMARY.message(ts=now, episode=self.episode, user=user,
             started=self.started, ended=max(ended, self.started),
             gestures={"names": names, "probs": probs},
             triggers=[{"gesture": t.gesture, "ts": t.ts, "prob": t.prob} for t in triggers],
             params=self.params(), focus=focus, focus_source=source)
+        if self.replayed:  # made of recorded hands: what follows from it is marked too
+            summary[wire.REPLAYED] = True
+        return summary

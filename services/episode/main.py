@@ -124,7 +124,6 @@ class Episode(Service):
         self.segmenter = Segmenter(settings.debounce_s, settings.clock_slack_s)
         self.builder_settings = settings.builder()
         self.current: EpisodeBuilder | None = None
-        self.replayed = False  # the open episode has frames of a recording (`cbgo replay`)
         self.closed: _Closed | None = None
         self.user = settings.user
         self.recent_gaze: deque[tuple[float, list[float]]] = deque(maxlen=1024)
@@ -175,7 +174,6 @@ class Episode(Service):
             out += self._start(boundary, msg) if boundary.kind == "start" else self._end(boundary)
         if self.current is not None:
             self.current.add_frame(msg, self._transform(msg.get("to_base")))
-            self.replayed |= msg.get(wire.REPLAYED) is True
         return out
 
     def on_static(self, msg: dict) -> list:
@@ -219,7 +217,6 @@ class Episode(Service):
         gaze = [p for ts, p in self.recent_gaze if ts >= horizon]
         self.current = EpisodeBuilder(episode, boundary.ts, frame["seq"], self.builder_settings,
                                       gaze)
-        self.replayed = False
         return [(keys.EPISODE_EVENT, keys.EPISODE_EVENT.message(ts=boundary.ts,
                                       episode=episode, kind="start"))]
 
@@ -231,8 +228,6 @@ class Episode(Service):
         self.closed = _Closed(ep.episode, ep.first_seq, ep.started)
         now = self.wall()
         summary = ep.summary(boundary.ts, self.user, now)
-        if self.replayed:  # made of recorded hands: what follows from it is marked too
-            summary[wire.REPLAYED] = True
         self.latencies.append(max(0.0, self.clock() - boundary.condition_at))
         self.ended_by[boundary.by] += 1
         self.ctx.log.info("%s: %.2f s, triggers %s, focus %s, params %s", ep.episode,

@@ -258,10 +258,21 @@ def query_all(session, key: str, message: dict | None = None, *,
               timeout_s: float = 10.0) -> list[tuple[bool, dict | str]]:
     """Sends a (wildcard) query; returns every reply as (True, reply) or (False, error text).
 
-    A malformed ok reply comes back as (False, "malformed reply: ...").
+    A malformed ok reply comes back as (False, "malformed reply: ..."). Replies are not
+    consolidated: Zenoh's default keeps one per key, and every process of one name answers on
+    the same key (two dry-robots would look like one, a reload would seem done by one).
+
+    Args:
+        session: a Zenoh session.
+        key: the key expression or selector.
+        message: the query payload (None: no payload).
+        timeout_s: how long to wait for replies.
     """
+    import zenoh
+
     out: list[tuple[bool, dict | str]] = []
-    for r in replies(session, key, _encode_query(message), timeout_s):
+    for r in replies(session, key, _encode_query(message), timeout_s,
+                     consolidation=zenoh.ConsolidationMode.NONE):
         if not r.ok:
             out.append((False, r.text))
             continue

@@ -23,8 +23,9 @@ def _command():
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds the data command's sub-commands (`cbgo_tools.data.command`)."""
-    parser.description = _command().__doc__
-    _command().add_arguments(parser)
+    command = _command()
+    parser.description = command.__doc__
+    command.add_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:

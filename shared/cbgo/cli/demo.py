@@ -36,18 +36,18 @@ import argparse
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 from cbgo.cli.common import add_network_arguments, fail, session
+from cbgo.config import DEFAULT_ROUTER_LISTEN
+from cbgo.endpoints import check_can_listen, local_endpoint
 from cbgo.errors import ConfigError
 
 ROBOTS = {"mujoco": "mujoco-sim", "dry": "dry-robot"}
 PIPELINE = ("leap-bridge", "static-gesture", "dynamic-gesture", "episode", "intent", "planner")
-DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 PLAN_TIMEOUT_S = {"mujoco-sim": 240.0, "dry-robot": 30.0}
 
 
@@ -69,8 +69,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run only these steps of the session (1-based), e.g. 1-3")
     parser.add_argument("--no-start", action="store_true",
                         help="do not start anything; run against the services at --connect")
-    parser.add_argument("--router-listen", default=DEFAULT_LISTEN, metavar="ENDPOINT",
-                        help=f"where the demo's own router listens [{DEFAULT_LISTEN}]")
+    parser.add_argument("--router-listen", default=DEFAULT_ROUTER_LISTEN, metavar="ENDPOINT",
+                        help=f"where the demo's own router listens [{DEFAULT_ROUTER_LISTEN}]")
     parser.add_argument("--ready-timeout", type=float, default=180.0, metavar="S",
                         help="how long the services may take to come up [180]")
     parser.add_argument("--plan-timeout", type=float, default=0.0, metavar="S",
@@ -81,21 +81,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 # ============================================================================ helpers
-
-
-def _port_in_use(endpoint: str) -> bool:
-    """Whether a tcp/HOST:PORT endpoint is already bound on this machine."""
-    proto, _, address = endpoint.partition("/")
-    host, _, port = address.rpartition(":")
-    if proto != "tcp" or not port.isdigit():
-        return False
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind((host.strip("[]") or "0.0.0.0", int(port)))
-        except OSError:
-            return True
-    return False
 
 
 def _select_steps(script, text: str) -> None:
@@ -115,10 +100,12 @@ def _select_steps(script, text: str) -> None:
 
 def _start_system(args: argparse.Namespace, robot: str, out: Path) -> subprocess.Popen:
     """Starts `cbgo up` with the router and the services; its log goes to services.log."""
-    if _port_in_use(args.router_listen):
-        fail(f"{args.router_listen} is in use: is `cbgo up` already running? Run the session "
-             "against it with --no-start, or give the demo another --router-listen "
-             "(e.g. tcp/127.0.0.1:7448)", 2)
+    try:
+        check_can_listen([args.router_listen], "--router-listen",
+                         hint="To play the session on the system there, add --no-start "
+                              f"--connect {local_endpoint(args.router_listen)}.")
+    except ConfigError as e:
+        fail(str(e), 2)
     # Users' personal intent models (from earlier corrections) would change the outcomes.
     env = {**os.environ, "CBGO_DATA_DIR": str(out / "data")}
     argv = [sys.executable, "-m", "cbgo.cli.main", "up", "--no-color", "--router-listen",

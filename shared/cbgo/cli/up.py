@@ -47,11 +47,10 @@ import time
 from dataclasses import dataclass
 from typing import NoReturn
 
-from cbgo import client, registry, wire
+from cbgo import client, registry
 from cbgo.cli.common import fail
 from cbgo.config import DEFAULT_ROUTER_LISTEN, ConfigError, add_zenoh_arguments, resolve_zenoh
 from cbgo.endpoints import check_can_listen, local_endpoint
-from cbgo.errors import RejectedMessage
 from cbgo.keys import Keys
 from cbgo.supervisor import EXIT_CONFIG, AliveWatcher, Child, Supervisor
 
@@ -395,7 +394,9 @@ class Up:
             whether one of them is our child, and how to find each of the others.
         """
         for attempt in range(tries):
-            replies = _status_replies(sess, keys.ctl(name, "status"))
+            # every process's reply, not one per key (`client.query_all`)
+            replies = [reply for ok, reply in client.query_all(
+                sess, keys.ctl(name, "status"), timeout_s=STATUS_TIMEOUT_S) if ok]
             if replies or attempt == tries - 1:
                 break
             time.sleep(0.5)
@@ -407,26 +408,6 @@ class Up:
             else:
                 strangers.append(f"pid {reply['pid']} on host {reply.get('host')}")
         return ours, strangers
-
-
-def _status_replies(sess, key: str) -> list[dict]:
-    """Returns the status reply of every process answering `key`, each one kept.
-
-    Zenoh's default consolidation keeps one reply per key, and every process of one name
-    answers on the same key: two dry-robots would look like one.
-    """
-    import zenoh
-
-    out = []
-    for reply in client.replies(sess, key, None, STATUS_TIMEOUT_S,
-                                consolidation=zenoh.ConsolidationMode.NONE):
-        try:
-            message = wire.decode(reply.payload) if reply.ok else None
-        except RejectedMessage:
-            continue
-        if message and isinstance(message.get("pid"), int):
-            out.append(message)
-    return out
 
 
 def _exit_without_finalizing(watching: threading.Thread, connected: threading.Event,

@@ -7,6 +7,7 @@ came before the timeout, so no test waits for time to pass.
 from types import SimpleNamespace
 
 import pytest
+import zenoh
 
 from cbgo import client, wire
 from cbgo.errors import QueryError
@@ -32,8 +33,9 @@ class FakeSession:
         self.tokens = list(alive)
         self.queries: list[tuple[str, bytes | None, float]] = []
 
-    def get(self, key, payload=None, timeout=None):
+    def get(self, key, payload=None, timeout=None, consolidation=None):
         self.queries.append((key, payload, timeout))
+        self.consolidation = consolidation
         return list(self.answers.get(key, []))
 
     def liveliness(self):
@@ -101,6 +103,7 @@ def test_query_all_returns_every_reply_and_marks_malformed_ones_as_errors():
                               _ok("cbgo/@ctl/intent/status", wire.encode({"v": 1})),
                               _err("not now")]})
     got = client.query_all(sess, key)
+    assert sess.consolidation == zenoh.ConsolidationMode.NONE  # two processes of a name: two
     assert got[0] == (True, good)
     assert got[1][0] is False and got[1][1].startswith(
         "malformed reply: cbgo/@ctl/intent/status: ")
