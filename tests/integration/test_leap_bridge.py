@@ -121,9 +121,14 @@ def test_an_mcap_recording_is_replayed_with_its_hands_order_and_pace(stack, tmp_
     start = [p for _, p in palms].index(first_palm)
     replayed = palms[start:start + len(wanted)]
     assert [p for _, p in replayed] == wanted
-    stamps = np.array([t for t, _ in replayed])
-    # the pace is the slope of arrival time over frame number: one late delivery on a busy
-    # machine (0.1 s at the last frame was seen) moves the end points, not the slope
+    # The pace is the service's schedule: each frame is stamped when it was due (its capture
+    # time), so the stamps follow the recording exactly whatever the machine's load.
+    start_item = [m for _, m in items if m["hands"]][start:start + len(wanted)]
+    stamps = np.array([m["ts"] for m in start_item])
     slope = np.polyfit(np.arange(len(stamps)), stamps, 1)[0]
-    assert abs(slope * 60.0 - 1.0) < 0.03
+    assert abs(slope * 60.0 - 1.0) < 0.01
+    # and it is a schedule kept, not stamps written on a burst: a frame never arrives before
+    # it is due, so the arrivals span at least the schedule less the first frame's lateness
+    arrivals = np.array([t for t, _ in replayed])
+    assert arrivals[-1] - arrivals[0] >= 0.9 * (stamps[-1] - stamps[0])
     assert all(m["source"] == "replay" for _, m in items)
