@@ -174,6 +174,11 @@ class SegmenterConfig:
         "tenth of its samples) or rolled min_peak_roll_deg_s; its final window from "
         "min_peak_speed_mm_s: the early windows of a brisk preparation or re-positioning look "
         "like a small swipe"))
+    first_peak_speed_mm_s: float = field(default=140.0, metadata=_help(
+        "min_peak_speed_mm_s for a hand's first stroke since it came into view, when lower: a "
+        "hand raised and held still is about to gesture, and a slow swiper's first swipe (a "
+        "line drawn in the air) is heard; later strokes of the hand, among which "
+        "re-positioning, keep the higher line (`cbgo bench dynamic --sets`)"))
     max_stroke_s: float = field(default=3.0, metadata=_help("longest stroke, s"))
     max_gap_s: float = field(default=0.3, metadata=_help(
         "a hand not seen for this long has disappeared, s"))
@@ -378,6 +383,7 @@ class _Track:
         self.far_mm = 0.0  # and that excursion (mm, roll as k·roll)
         self.since_eval = 0
         self.stroke_id = 0
+        self.evaluated = 0  # strokes of this hand whose final window was evaluated
         self.raw_palm: np.ndarray | None = None  # the palm as the tracker last reported it
         self.jumped = np.zeros(3)  # the tracker's jumps so far, taken out of the palm's path
         self.steps: deque[float] = deque(maxlen=JUMP_HISTORY)  # last frame-to-frame speeds
@@ -605,7 +611,7 @@ class Segmenter:
         if len(track.stroke) < self.config.min_samples or track.since_eval < self.eval_every:
             return None
         window = self._window(track, track.stroke, final=False)
-        if not self._worth_evaluating(window):
+        if not self._worth_evaluating(window, track):
             return None  # not yet more than a twitch or a slow move: try at the next sample
         track.since_eval = 0
         return window
@@ -618,9 +624,12 @@ class Segmenter:
         if len(samples) < self.config.min_samples:
             return None  # too short to be a gesture (a twitch)
         window = self._window(track, samples, final=True, reason=reason)
-        return window if self._worth_evaluating(window) else None
+        if not self._worth_evaluating(window, track):
+            return None
+        track.evaluated += 1
+        return window
 
-    def _worth_evaluating(self, window: Window) -> bool:
+    def _worth_evaluating(self, window: Window, track: _Track) -> bool:
         """Whether a window is more than a twitch, faster than a slow move and no exit.
 
         A running stroke's windows must be faster (`mid_peak_speed_mm_s`) than its final one:
@@ -634,11 +643,23 @@ class Segmenter:
         c = self.config
         space = float(np.linalg.norm(window.obs[:, :3], axis=1).max())
         moved = float(np.linalg.norm(window.obs, axis=1).max()) >= c.min_extent_mm
-        speed = c.min_peak_speed_mm_s if window.final else max(c.min_peak_speed_mm_s,
-                                                                 c.mid_peak_speed_mm_s)
+        final_line, mid_line = self.lines(track)
+        speed = final_line if window.final else max(final_line, mid_line)
         rolling = (window.peak_roll_deg_s >= c.min_peak_roll_deg_s
                    and float(np.abs(window.obs[:, 3]).max()) >= space)
         return moved and (window.peak_mm_s >= speed or rolling) and not self._exit(window)
+
+    def lines(self, track: _Track) -> tuple[float, float]:
+        """Returns the slow-move lines (final window, running window) for a hand's stroke.
+
+        A hand's first stroke since it came into view and rested is judged by
+        ``first_peak_speed_mm_s`` instead (when lower).
+        """
+        c = self.config
+        if track.evaluated == 0:
+            first = min(c.first_peak_speed_mm_s, c.min_peak_speed_mm_s)
+            return first, max(first, c.mid_peak_speed_mm_s)
+        return c.min_peak_speed_mm_s, c.mid_peak_speed_mm_s
 
     @staticmethod
     def _exit(window: Window) -> bool:

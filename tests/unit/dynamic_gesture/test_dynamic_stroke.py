@@ -252,10 +252,25 @@ def test_a_stroke_ends_when_the_hand_falls_well_below_its_peak_speed_despite_jit
     assert 130 < first.obs[-1, 1] < 180
 
 
-def test_a_slow_move_is_not_evaluated(synth):
-    slow = synth.trajectory([REST, ("move", 1.0, (0, 100, 0)), ("hold", 0.5)])  # 188 mm/s peak
-    assert synth.feed(Segmenter(), slow) == []
-    assert finals(synth.feed(Segmenter(SegmenterConfig(min_peak_speed_mm_s=50.0)), slow))
+BRISK_FIRST = [REST, ("move", 0.4, (150, 0, 0)), ("hold", 0.5)]  # a swipe: the hand's first
+ONE_LINE = SegmenterConfig(first_peak_speed_mm_s=200.0)  # every stroke judged as a later one
+
+
+def test_a_slow_move_after_the_hands_first_stroke_is_not_evaluated(synth):
+    slow = synth.trajectory([*BRISK_FIRST, ("move", 1.0, (0, 100, 0)), ("hold", 0.5)])
+    windows = finals(synth.feed(Segmenter(), slow))  # the slow move: 182 mm/s in a tenth
+    assert [w.stroke for w in windows] == [1]
+    lower = SegmenterConfig(min_peak_speed_mm_s=50.0)
+    assert [w.stroke for w in finals(synth.feed(Segmenter(lower), slow))] == [1, 2]
+
+
+def test_a_hands_first_stroke_is_heard_down_to_the_first_line(synth):
+    # A person raises a hand, holds it still and draws a line in the air: 100 mm in 1 s
+    drawn = synth.trajectory([REST, ("move", 1.0, (100, 0, 0)), ("hold", 0.5)])
+    assert finals(synth.feed(Segmenter(), drawn))
+    assert synth.feed(Segmenter(ONE_LINE), drawn) == []
+    creeping = synth.trajectory([REST, ("move", 2.0, (100, 0, 0)), ("hold", 0.5)])  # 94 mm/s
+    assert synth.feed(Segmenter(), creeping) == []
 
 
 def test_a_brisk_move_below_the_running_threshold_is_evaluated_only_at_its_end(synth):
@@ -270,16 +285,16 @@ def test_a_slow_move_with_a_tremor_is_not_evaluated_though_its_top_speed_passes(
                                                                                 monkeypatch):
     # 190 mm in 2 s (178 mm/s at most), a tremor of 2 mm: a few samples pass 200 mm/s
     slow = synth.trajectory([REST, ("move", 2.0, (-190, 0, 0)), REST], tremor=2.0, seed=0)
-    assert synth.feed(Segmenter(), slow) == []
+    assert synth.feed(Segmenter(ONE_LINE), slow) == []
     monkeypatch.setattr(stroke, "FAST_PERCENTILE", 100.0)  # the top speed, as before
-    assert finals(synth.feed(Segmenter(), slow))
+    assert finals(synth.feed(Segmenter(ONE_LINE), slow))
 
 
 def test_a_slow_move_whose_palm_rolls_fast_is_a_rotate_candidate_only_if_mostly_roll(synth):
     # 120 mm at 188 mm/s peak, the palm rolling 90° back at 140°/s peak (k*roll 79 mm)
     back = synth.trajectory([REST, ("moveroll", 1.2, (-120, 0, 0), math.radians(90)),
                              ("hold", 0.5)])
-    assert synth.feed(Segmenter(), back) == []
+    assert synth.feed(Segmenter(ONE_LINE), back) == []
     twist = synth.trajectory([REST, ("moveroll", 1.2, (-30, 0, 0), math.radians(90)),
                               ("hold", 0.5)])
     assert finals(synth.feed(Segmenter(), twist))

@@ -49,6 +49,9 @@ DATASETS: dict[str, DataSet] = {d.name: d for d in (
     DataSet("shrec17", "SHREC'17 / DHG-14/28: depth-camera hand skeletons, 28 people, 14 gestures",
             "giach68/gesturesCodes", "datasetShrec",
             "train split (train_gestures.txt): fit and tune; test split: reserved, never fitted"),
+    DataSet("gesturemidair", "GestureMidAir: Leap fingertip paths of 13 people, 26 drawn gestures",
+            "giach68/gesturesCodes", "datasetNew",
+            "train people (train_gestures.txt): development; test people and davide: reserved"),
     DataSet("mmhgr", "HGR multi-modal Leap set: 25 people, 16 static poses, Leap SDK v2",
             QUANTUMLEAP, "backend/src/datasets/static/multi_mod_hand_gest_recog",
             "development (static-gesture training with people kept apart)",
@@ -61,4 +64,10 @@ DATASETS: dict[str, DataSet] = {d.name: d for d in (
     DataSet("leapmotion-all", "16 people's own previous/next swipes, either hand (LeapJS)",
             QUANTUMLEAP, "backend/src/datasets/dynamic/leapmotion-all", "evaluation only",
             commit="bec964af", converter="cbgo_tools.data.leapjs"),
+    DataSet("collaborice", "CollaborICE: Leap Motion Controller 2 (LeapC, Gemini) right hands, "
+            "2 people, 4 static poses, JSON lines",
+            "univr-GRAIL/CollaborICE_Leap_Gesture_Recognition",
+            "gesture_recognizer_creator/data/train",
+            "development (its train folder, people kept apart); the repository's test folder "
+            "is reserved: never fetched, never read", converter="cbgo_tools.data.collaborice"),
 )}

@@ -66,29 +66,86 @@ def list_sets() -> int:
 
 
 def fetch(data: DataSet, source: str | None = None, force: bool = False) -> int:
-    """Copies ``data.folder`` of its repository into the cache with a sparse git checkout."""
+    """Copies ``data.folder`` of its repository into the cache with a sparse git checkout.
+
+    Where the checkout fails or leaves files out (a mirror or partial clone that lacks some
+    of the folder's file contents), the files are copied one by one instead
+    (`copy_readable`): those that can be read are kept, and the ones that cannot are named.
+    """
     if shutil.which("git") is None:
         fail("cbgo data fetch needs git", 2)
     if data.path.exists() and not force:
         print(f"{data.name} is already at {data.path} (--force replaces it)")
         return 0
     url = source or f"https://github.com/{data.repo}.git"
+    commit = data.commit or "HEAD"
     data.path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=data.path.parent, prefix=f".{data.name}-") as tmp:
         clone = Path(tmp) / "repo"
         steps = [["git", "clone", "--filter=blob:none", "--no-checkout", "--quiet", url,
                   str(clone)],
-                 ["git", "-C", str(clone), "sparse-checkout", "set", "--no-cone", data.folder],
-                 ["git", "-C", str(clone), "checkout", "--quiet", data.commit or "HEAD"]]
+                 ["git", "-C", str(clone), "sparse-checkout", "set", "--no-cone", data.folder]]
         for step in steps:
-            print("$ " + " ".join(step), file=sys.stderr)
-            if subprocess.run(step).returncode != 0:
-                fail(f"fetching {data.name} from {url} failed (see git's message above)", 1)
-        folder = clone / data.folder
-        if not folder.is_dir():
+            _git(step, f"fetching {data.name} from {url} failed (see git's message above)")
+        checkout = ["git", "-C", str(clone), "checkout", "--quiet", commit]
+        print("$ " + " ".join(checkout), file=sys.stderr)
+        checked_out = subprocess.run(checkout).returncode == 0
+        listed = list_files(clone, commit, data.folder)
+        if not listed:
             fail(f"{url} has no folder {data.folder}", 1)
+        folder = clone / data.folder
+        if not checked_out or not all((clone / path).is_file() for path in listed):
+            print(f"the checkout left files of {data.folder} out; copying them one by one",
+                  file=sys.stderr)
+            folder = Path(tmp) / "files"
+            copied, unreadable = copy_readable(clone, commit, data.folder, listed, folder)
+            if not copied:
+                fail(f"{url}: none of the files of {data.folder} could be read "
+                     f"({len(unreadable)} listed); fetch from GitHub (no --from) or a complete "
+                     "clone", 1)
+            if unreadable:
+                print(f"{data.name}: kept {copied} files; {len(unreadable)} could not be read "
+                      "from this source (their contents are missing there): "
+                      + ", ".join(unreadable), file=sys.stderr)
         if data.path.exists():
             shutil.rmtree(data.path)
         folder.rename(data.path)
     print(f"fetched {data.name} into {data.path}")
     return 0
+
+
+def _git(step: list[str], error: str) -> None:
+    print("$ " + " ".join(step), file=sys.stderr)
+    if subprocess.run(step).returncode != 0:
+        fail(error, 1)
+
+
+def list_files(clone: Path, commit: str, folder: str) -> list[str]:
+    """Returns the repository paths of every file under ``folder`` at ``commit``."""
+    listing = subprocess.run(["git", "-C", str(clone), "ls-tree", "-r", "-z", "--name-only",
+                              commit, "--", folder], capture_output=True)
+    if listing.returncode != 0:
+        fail(f"git cannot list {folder} at {commit}: "
+             f"{listing.stderr.decode(errors='replace').strip()}", 1)
+    return list(filter(None, listing.stdout.decode().split("\0")))
+
+
+def copy_readable(clone: Path, commit: str, folder: str, paths: list[str], dest: Path
+                  ) -> tuple[int, list[str]]:
+    """Copies each of ``paths`` (under ``folder``) at ``commit`` that git can read to ``dest``.
+
+    Returns:
+        (files copied, the paths whose contents could not be read).
+    """
+    copied, unreadable = 0, []
+    for path in paths:
+        blob = subprocess.run(["git", "-C", str(clone), "cat-file", "blob", f"{commit}:{path}"],
+                              capture_output=True)
+        if blob.returncode != 0:
+            unreadable.append(path)
+            continue
+        target = dest / Path(path).relative_to(folder)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes(blob.stdout)
+        copied += 1
+    return copied, unreadable

@@ -89,6 +89,7 @@ from cbgo.simuser.scenario import load_scenario
 from cbgo.simuser.user import SimulatedUser
 from cbgo_tools.data import shrec
 from cbgo_tools.dynamic_gesture import (
+    crossset,
     live,
     plainstrokes,
     realism,
@@ -134,6 +135,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "users replayed offline through the service's segmenter, return "
                              "filter and library (--templates), as the live services answer "
                              "them; no episode summary [0: off]")
+    parser.add_argument("--sets", action="store_true",
+                        help="instead of the above: every real development set in the cache "
+                             "and the continuous streams, replayed offline through the "
+                             "service's logic (--templates), in one table (`crossset`)")
+    parser.add_argument("--segmenter", action="append", default=[], metavar="KEY=VALUE",
+                        help="with --sets: replay with this segmenter setting changed "
+                             "(SegmenterConfig's fields; repeatable)")
     parser.add_argument("--latency", action=argparse.BooleanOptionalAction, default=True,
                         help="measure latency through real processes [on]")
     parser.add_argument("--json", type=Path, default=None, help="also write the figures here")
@@ -450,6 +458,20 @@ def run_replay_sim(args: argparse.Namespace) -> int:
     return report.report_replay(result, args.json)
 
 
+def run_sets(args: argparse.Namespace) -> int:
+    """``--sets``: every cached real set and the streams, offline, in one table."""
+    try:
+        overrides = crossset.parse_overrides(args.segmenter)
+    except ValueError as e:
+        print(e, file=sys.stderr)
+        return 2
+    classifier = Library(args.templates, None).load().classifier()
+    result = crossset.run(classifier, overrides, args.streams_sim, args.seed, replay_trial)
+    if args.json:
+        args.json.write_text(json.dumps(result, indent=1))
+    return 0
+
+
 def run_plain_strokes(args: argparse.Namespace) -> int:
     """``--plain-strokes REPS``: the grid of `plainstrokes`, replayed offline."""
     classifier = Library(args.templates, None).load().classifier()
@@ -494,6 +516,8 @@ def run(args: argparse.Namespace) -> int:
         return report.report_live(result, args.json, synthetic=True)
     if args.replay_sim > 0:
         return run_replay_sim(args)
+    if args.sets:
+        return run_sets(args)
     if args.plain_strokes > 0:
         return run_plain_strokes(args)
     if args.realism is not None:

@@ -9,6 +9,8 @@ gesture, whatever return follows) and leaves. Three sources:
 - Leap Motion recordings in LeapJS's JSON frames (`cbgo_tools.data.leapjs`: the Guinevere set,
   about 115 Hz, or the swipes converted from ``leapmotion-all``; a folder of person folders of
   ``NAME-TAKE.json``);
+- GestureMidAir's fingertip paths (`cbgo_tools.data.gesturemidair`, about 60 Hz), carried by
+  an open hand: slow, short swipes, a person drawing a line in the air;
 - simulated users (`simulated_trials`): each performs every dynamic gesture once per
   appearance of the hand, rotate included.
 
@@ -17,8 +19,9 @@ gesture, whatever return follows) and leaves. Three sources:
 right hands only, so this is how the left-hand path is measured on real motion.
 
 People: the SHREC'17 train split's people are the only ones that fitting, tuning and selection
-may look at; its test split is reserved for acceptance checks (`real_trials`' ``split``). The
-LeapJS sets are never fitted on.
+may look at; its test split is reserved for acceptance checks (`real_trials`' ``split``), as are
+GestureMidAir's test people. GestureMidAir's train people and the LeapJS sets are development
+data that nothing is fitted on: they judge a change made for other people.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from cbgo.services.dynamic_gesture.classifier import MIRROR
 from cbgo.simuser.scenario import IDLE_MOTIONS, Episode, Scenario
 from cbgo.simuser.user import SimulatedUser
 from cbgo.wire import DYNAMIC_GESTURES
-from cbgo_tools.data import leapjs, shrec
+from cbgo_tools.data import gesturemidair, leapjs, shrec
 from cbgo_tools.dynamic_gesture import simdata
 
 OTHER = (1, 2, 3, 4, 14)  # grab, tap, expand, pinch, shake: no dynamic gesture of ours
@@ -83,6 +86,12 @@ def leapjs_trial(recording: leapjs.Recording) -> Trial:
     truth = recording.gesture if recording.gesture in leapjs.SWIPES else "none"
     name = recording.gesture + (f"#{recording.variant}" if recording.variant else "")
     return Trial(truth, name, recording.person, recording)
+
+
+def gesturemidair_trial(drawing: gesturemidair.Drawing) -> Trial:
+    """Returns a GestureMidAir swipe, carried by an open hand (`gesturemidair.hand_frames`)."""
+    return Trial(gesturemidair.SWIPES[drawing.gesture], drawing.gesture, drawing.person,
+                 gesturemidair.hand_frames(drawing.samples()))
 
 
 def shrec_frames(joints: np.ndarray) -> list[tuple[float, list[dict]]]:
@@ -140,12 +149,16 @@ def pick_trials(trials: list[Trial], per_class: int, seed: int, others: int | No
 def real_trials(root: Path, split: str) -> tuple[str, list[Trial], list[shrec.Sequence]]:
     """Returns the data set's device name, its trials and (SHREC'17 only) its sequences.
 
-    A folder with SHREC'17's split lists is SHREC'17; anything else is read as LeapJS
+    A folder of GestureMidAir (`gesturemidair.is_set`) is that set (its `split`'s people), one
+    with SHREC'17's split lists is SHREC'17; anything else is read as LeapJS
     recordings.
 
     Raises:
         FileNotFoundError: neither data set is there.
     """
+    if gesturemidair.is_set(root):
+        return "gesturemidair", [gesturemidair_trial(d)
+                                 for d in gesturemidair.read_split(root, split)], []
     if (root / "train_gestures.txt").is_file():
         sequences = shrec.read_split(root, split)
         return "shrec17", [shrec_trial(s) for s in sequences

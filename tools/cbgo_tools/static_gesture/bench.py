@@ -19,6 +19,10 @@ Figures (the goals in brackets; `GOALS`, printed as PASS/MISS lines at the end):
    measured): recordings made with ``cbgo record ... hands/frame`` while one pose was held,
    scored per take through the model (``takes``): the frames answered with the take's gesture,
    or, for a label that is no gesture of the model, the frames rejected.
+1e. **CollaborICE's LMC2 frames** (``collaborice``: Leap Motion Controller 2, LeapC Gemini
+   tracking, people never seen; when ``cbgo data fetch collaborice`` has copied its train
+   folder to the cache): per pose file, the share of frames right, each read alone, and what
+   the others were read as.
 2. **Held-out simulated users**: gestures performed by simulated people from a seed stream the
    trainer never uses (a new hand per rendition), plus no-gesture poses when the model has that
    class: balanced accuracy, ECE, confusion; and simulated users performing the ``static-all``
@@ -85,7 +89,7 @@ from cbgo.services.static_gesture.classifier import (
     StaticClassifier,
     default_model_path,
 )
-from cbgo_tools.data import guinevere, ultraleap
+from cbgo_tools.data import collaborice, guinevere, ultraleap
 from cbgo_tools.static_gesture import crossval, takes
 
 EVAL_RELATIVE = Path("..") / "shared" / "eval" / "leap_static_features_test.npz"
@@ -378,6 +382,8 @@ def _print(fig: dict) -> None:
     else:
         takes.print_figures(fig["guinevere"], m["model"], "Guinevere's static takes")
         print()
+    collaborice.print_scores(fig.get("collaborice"))
+    print()
     sim = fig["simulated"]
     _eval_lines("held-out simulated users", sim["renditions"])
     print(_indent(_confusion_text(sim["renditions"])))
@@ -605,6 +611,7 @@ def run(args: argparse.Namespace) -> int:
         fig["real"] = real_test(clf, eval_path)
     fig["ultraleap"] = ultraleap.score_poses(clf)
     fig["guinevere"] = score_guinevere(clf)
+    fig["collaborice"] = collaborice.score(clf)
     hands, labels = scenario_frames([1000 + args.seed + i for i in range(args.scenario_seeds)])
     fig["simulated"] = simulated(clf, args.per_gesture, args.seed, hands, labels)
     fig["throughput"] = throughput(clf, hands[:args.frames], clf.path or model_path)

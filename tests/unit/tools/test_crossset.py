@@ -1,0 +1,32 @@
+"""The cross-set table: segmenter overrides, and a real set's row from its trials."""
+
+import pytest
+
+from cbgo.services.dynamic_gesture.library import DEFAULT_PATH, Library
+from cbgo.services.dynamic_gesture.stroke import SegmenterConfig
+from cbgo_tools.dynamic_gesture import crossset
+from cbgo_tools.dynamic_gesture.bench import replay_trial
+
+
+def test_overrides_are_typed_as_the_segmenters_fields():
+    out = crossset.parse_overrides(["min_peak_speed_mm_s=150", "min_samples=6",
+                                    "centre_rule=true"])
+    assert out == {"min_peak_speed_mm_s": 150.0, "min_samples": 6, "centre_rule": True}
+
+
+@pytest.mark.parametrize("item", ["nosuch=1", "min_peak_speed_mm_s"])
+def test_an_unknown_or_malformed_override_names_the_known_fields(item):
+    with pytest.raises(ValueError, match="min_peak_speed_mm_s"):
+        crossset.parse_overrides([item])
+
+
+def test_a_sets_row_scores_its_train_peoples_swipes(tmp_path, midair_set):
+    root = midair_set(tmp_path / "set")
+    classifier = Library(DEFAULT_PATH, None).load().classifier()
+    row = crossset.trial_row(classifier, "gesturemidair", root, SegmenterConfig(), replay_trial)
+    assert row["device"] == "gesturemidair" and row["swipes"] == 2 and row["people"] == 1
+    assert 0.0 <= row["balanced_accuracy"] <= 1.0
+    assert row["silent"] + sum(1 for m in row["misses"] if "nothing" not in m) <= 2
+    lines = []
+    crossset.print_table([{**row, "what": "synthetic"}], [], lines.append)
+    assert any(line.startswith("| gesturemidair | synthetic | 1 | 2 |") for line in lines)
