@@ -90,6 +90,11 @@ class TakeRecorder:
                 new = window
         return new
 
+    def prompt(self) -> str:
+        """What the person does for the next take."""
+        return ("rest the hand in the centre, perform the gesture once, take the hand away; "
+                "repeat")
+
     def records(self, user: str | None) -> list[dict]:
         """Returns the takes as plain data (`library.take_record`)."""
         return [take_record(w.obs, w.t_end - w.t_start, w.pose_change, user) for w in self.takes]
@@ -146,11 +151,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_network_arguments(parser)
 
 
-def _say(text: str) -> None:
+def say(text: str) -> None:
+    """Tells the person at the sensor what happened or what to do next."""
     print(text, flush=True)
 
 
-def _from_file(recorder: TakeRecorder, path: str) -> None:
+def record_from_file(recorder, path: str) -> None:
+    """Feeds the hand frames of an MCAP recording to a recorder until it has its takes.
+
+    Raises:
+        ConfigError: the recording cannot be read.
+    """
     from cbgo.errors import RecordingError
     from cbgo.recording import read_recording
 
@@ -160,15 +171,16 @@ def _from_file(recorder: TakeRecorder, path: str) -> None:
                 frame = wire.validate(item.message, wire.HANDS_FRAME, item.key)
             except RejectedMessage:
                 continue
-            if recorder.feed(frame["ts"], frame["hands"]) is not None:
-                _say(f"take {len(recorder.takes)}/{recorder.wanted} captured")
+            window = recorder.feed(frame["ts"], frame["hands"])
+            if window is not None:
+                say(_captured(recorder, window))
             if recorder.done:
                 return
     except RecordingError as e:
         raise ConfigError(str(e)) from None
 
 
-def _live(recorder: TakeRecorder, session, prefix_keys, timeout: float) -> str | None:
+def record_live(recorder, session, prefix_keys, timeout: float) -> str | None:
     """Records takes from the network; returns the operator announced on cbgo/user, if any."""
     frames: queue.Queue = queue.Queue(maxsize=4096)
     operator: list[str] = []
@@ -189,8 +201,7 @@ def _live(recorder: TakeRecorder, session, prefix_keys, timeout: float) -> str |
     subscribers = [session.declare_subscriber(key, on_frame),
                    session.declare_subscriber(prefix_keys.of(keys.USER), on_user)]
     deadline = time.monotonic() + timeout
-    _say(f"recording {recorder.wanted} take(s) on {key}: rest the hand in the centre, perform "
-         "the gesture once, take the hand away; repeat")
+    say(f"recording {recorder.wanted} take(s) on {key}: " + recorder.prompt())
     try:
         while not recorder.done and time.monotonic() < deadline:
             try:
@@ -203,12 +214,18 @@ def _live(recorder: TakeRecorder, session, prefix_keys, timeout: float) -> str |
                 continue
             window = recorder.feed(frame["ts"], frame["hands"])
             if window is not None:
-                _say(f"take {len(recorder.takes)}/{recorder.wanted} captured "
-                     f"({window.t_end - window.t_start:.2f} s, {len(window.obs)} samples)")
+                say(_captured(recorder, window))
     finally:
         for subscriber in subscribers:
             subscriber.undeclare()
     return operator[-1] if operator else None
+
+
+def _captured(recorder, window: Window) -> str:
+    """What to say when a take was captured: which, how long, and what to do next."""
+    text = (f"take {len(recorder.takes)}/{recorder.wanted} captured "
+            f"({window.t_end - window.t_start:.2f} s, {len(window.obs)} samples)")
+    return text if recorder.done else f"{text}; {recorder.prompt()}"
 
 
 def _reload(session, prefix_keys) -> None:
@@ -217,11 +234,11 @@ def _reload(session, prefix_keys) -> None:
     key = prefix_keys.ctl("dynamic-gesture", "reload")
     for ok, answer in query_all(session, key, {"v": wire.SCHEMA_VERSION}, timeout_s=5.0):
         if ok:
-            _say(f"dynamic-gesture reloaded: {', '.join(answer.get('gestures', []))}")
+            say(f"dynamic-gesture reloaded: {', '.join(answer.get('gestures', []))}")
         else:
-            _say(f"dynamic-gesture could not reload: {answer}")
+            say(f"dynamic-gesture could not reload: {answer}")
         return
-    _say("dynamic-gesture is not running; it loads the gesture when it starts")
+    say("dynamic-gesture is not running; it loads the gesture when it starts")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -245,7 +262,7 @@ def run(args: argparse.Namespace) -> int:
     user = getattr(args, "user", None)
     if getattr(args, "file", None):
         try:
-            _from_file(recorder, args.file)
+            record_from_file(recorder, args.file)
         except ConfigError as e:
             print(f"cbgo: {e}", file=sys.stderr)
             return 2
@@ -253,7 +270,7 @@ def run(args: argparse.Namespace) -> int:
     from cbgo.client import session
 
     with session(args, "cbgo-gestures-record") as (sess, prefix_keys):
-        operator = _live(recorder, sess, prefix_keys, timeout)
+        operator = record_live(recorder, sess, prefix_keys, timeout)
         return _finish(recorder, name, user or operator, replace, sess, prefix_keys)
 
 
@@ -267,7 +284,7 @@ def _finish(recorder: TakeRecorder, name: str, user: str | None, replace: bool, 
     earlier = [] if replace else read_takes(folder / f"{name}.json")
     template = recorder.template(name, user, earlier)
     path = save_user_template(folder, template, earlier + recorder.records(user))
-    _say(f"saved {name} ({template.n_demos} takes, {len(earlier)} of them earlier; scale "
+    say(f"saved {name} ({template.n_demos} takes, {len(earlier)} of them earlier; scale "
          f"{template.scale:.3f}) to {path}")
     if sess is not None:
         _reload(sess, prefix_keys)

@@ -13,7 +13,10 @@ Behaviour (the contract is services/dynamic_gesture/README.md):
   taught with ``cbgo gestures record NAME --dynamic``); the control verb
   ``@ctl/dynamic-gesture/reload`` reloads them at once, and the default library
   (`cbgo.model_store`: ``--model``, else the one ``cbgo train dynamic`` wrote in the data dir,
-  else the shipped one) and the user folder are polled every ``--watch-s`` for changes.
+  else the shipped one) and the user folder are polled every ``--watch-s`` for changes;
+- while ``cbgo/user`` names a person calibrated with ``cbgo gestures calibrate``
+  (``<data dir>/calibration/<user>.json``), strokes are judged by that person's slow-move
+  lines (`pace`); the file is re-read when it changes.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ from cbgo.services.dynamic_gesture.library import (
     trained_path,
     user_dir,
 )
+from cbgo.services.dynamic_gesture.pace import Paces
 from cbgo.services.dynamic_gesture.stroke import (
     ReturnFilter,
     Segmenter,
@@ -90,6 +94,8 @@ class DynamicGesture(Service):
     def __init__(self, settings: DynamicGestureSettings):
         super().__init__(settings)
         self.segmenter = Segmenter(settings.segmenter())
+        self.paces = Paces(data_dir() / "calibration")
+        self.user: str | None = None
         self.returns = ReturnFilter(settings.return_s)
         self.store = ModelStore(DEFAULT_PATH, trained_path(data_dir()), ("",), settings.model)
         self.library = Library(self.store.path(), Path(settings.user_dir) if settings.user_dir
@@ -117,6 +123,7 @@ class DynamicGesture(Service):
                               f"differs from the {scale} the templates were learned with")
         self._load()
         ctx.subscribe(keys.HANDS_FRAME, self.on_frame)
+        ctx.subscribe(keys.USER, self.on_user)
         ctx.publishes(keys.GESTURES_DYNAMIC)
         ctx.control("reload", self.on_reload)
         if self.settings.watch_s > 0:
@@ -144,6 +151,18 @@ class DynamicGesture(Service):
         windows = self.segmenter.update(msg["ts"], msg["hands"])
         return [(keys.GESTURES_DYNAMIC, self.message(window, probs))
                 for window, probs in reported(windows, self.returns, self.classify)]
+
+    def on_user(self, msg: dict) -> None:
+        """Judges strokes by the named person's pace from now on (the defaults without one)."""
+        if msg["user"] != self.user:
+            self.ctx.log.info("user %s", msg["user"])
+        self.user = msg["user"]
+        self._apply_pace()
+
+    def _apply_pace(self) -> None:
+        pace = self.paces.get(self.user) if self.user else None
+        base = self.settings.segmenter()
+        self.segmenter.retune(pace.applied(base) if pace else base)
 
     def classify(self, window: Window) -> np.ndarray:
         """Returns the probabilities of one window, timing the classification."""
@@ -177,7 +196,11 @@ class DynamicGesture(Service):
                 "skipped": self.library.skipped, "model": MODEL}
 
     def poll(self) -> None:
-        """Timer: reloads when the library or user gesture files were added, changed, removed."""
+        """Timer: reloads when the library or user gesture files were added, changed, removed.
+
+        The current user's calibration is re-read too when its file changed.
+        """
+        self._apply_pace()
         if self.store.changed() or self.library.changed():
             self.ctx.log.info("templates changed; reloading")
             try:
@@ -192,6 +215,12 @@ class DynamicGesture(Service):
         return {"gestures": [{"name": t.name, "source": t.source, "demos": t.n_demos}
                              for t in self.library.templates],
                 "skipped": self.library.skipped, "strokes": self.segmenter.strokes,
+                "user": self.user,
+                # the slow-move lines in use: the user's pace, or the settings'
+                "lines_mm_s": {"final": self.segmenter.config.min_peak_speed_mm_s,
+                               "running": self.segmenter.config.mid_peak_speed_mm_s,
+                               "first": self.segmenter.config.first_peak_speed_mm_s},
+                "calibration_skipped": self.paces.skipped,
                 "tracking_jumps": self.segmenter.jumps,
                 "returns": self.returns.returns,
                 "windows": self.windows, "reloads": self.reloads,

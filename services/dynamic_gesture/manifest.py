@@ -7,11 +7,15 @@ MANIFEST = Manifest(
     name="dynamic-gesture",
     summary="stroke segmentation and dynamic gestures (ProMP + DTW)",
     order=30,
-    subscribes=(keys.HANDS_FRAME,),
+    subscribes=(keys.HANDS_FRAME, keys.USER),
     publishes=(keys.GESTURES_DYNAMIC,),
     controls=("reload",),
     service="cbgo.services.dynamic_gesture.main:DynamicGesture",
     demonstrate=Tool(
         "dynamic", "cbgo.services.dynamic_gesture.demonstrate", "a movement (dynamic-gesture)"
+    ),
+    calibrate=Tool(
+        "dynamic", "cbgo.services.dynamic_gesture.calibrate",
+        "the swipes' pace: a slow swiper is heard (dynamic-gesture)"
     ),
 )

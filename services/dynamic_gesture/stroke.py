@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -414,6 +414,15 @@ class Segmenter:
     def reset(self) -> None:
         """Forgets every hand (e.g. when the frame clock jumps back)."""
         self.tracks.clear()
+
+    def retune(self, config: SegmenterConfig) -> None:
+        """Takes the slow-move lines of `config` (a person's pace: `pace.Pace.applied`).
+
+        Only the lines are read on each stroke; the other settings stay as built.
+        """
+        self.config = replace(self.config, min_peak_speed_mm_s=config.min_peak_speed_mm_s,
+                              mid_peak_speed_mm_s=config.mid_peak_speed_mm_s,
+                              first_peak_speed_mm_s=config.first_peak_speed_mm_s)
 
     def update(self, t: float, hands: list[dict]) -> list[Window]:
         """Feeds one frame; returns the windows that became ready.

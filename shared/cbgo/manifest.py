@@ -60,6 +60,8 @@ class Manifest:
         service: ``module:Class`` of its `cbgo.runtime.Service` (and so of its settings).
         figures: ``cbgo plot <name>``.
         demonstrate: ``cbgo gestures record --<name>``: learning a gesture by demonstration.
+        calibrate: ``cbgo gestures calibrate``: fitting the recogniser to one person from a few
+            demonstrations of the gestures it knows.
     """
 
     name: str
@@ -75,6 +77,7 @@ class Manifest:
     service: str = ""
     figures: tuple[Tool, ...] = ()
     demonstrate: Tool | None = None
+    calibrate: Tool | None = None
 
     @property
     def role(self) -> str:

@@ -60,7 +60,7 @@ def tools(kind: str) -> dict[str, tuple[str, str]]:
     """Returns the services' tools of one kind: name -> (module, summary).
 
     Args:
-        kind: ``figures`` or ``demonstrate`` (a `Manifest` field).
+        kind: ``figures``, ``demonstrate`` or ``calibrate`` (a `Manifest` field).
 
     Raises:
         ValueError: two services bring a tool of the same name.

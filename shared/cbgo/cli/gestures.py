@@ -5,7 +5,8 @@ replay, the simulated user), stores it in the user's gesture set under the data 
 retrains the model and asks the running service to reload it — no code change. ``--static`` is
 handled by ``cbgo.services.static_gesture.demonstrate``, ``--dynamic`` by
 ``cbgo.services.dynamic_gesture.demonstrate`` (each imported only when used).
-``cbgo gestures record --help`` says how, with examples.
+``cbgo gestures record --help`` says how, with examples. ``calibrate`` fits the recognisers to
+one person from a few takes of the gestures they already know (``--help`` says how).
 
 Examples::
 
@@ -13,6 +14,7 @@ Examples::
     cbgo gestures record horns --static                  # 60 frames of one take, retrain
     cbgo gestures record ok --static --takes 3 --frames 40 --user alice
     cbgo gestures record circle --dynamic --takes 5
+    cbgo gestures calibrate --user alice --takes 3       # a slow swiper is heard
     cbgo gestures list
     cbgo gestures list --json
 """
@@ -36,7 +38,23 @@ from cbgo.errors import ConfigError
 # kind -> (module, what is demonstrated), from the services' manifests (``demonstrate``)
 DEMONSTRATIONS = registry.tools("demonstrate")
 MODULES = {kind: module for kind, (module, _) in DEMONSTRATIONS.items()}
+CALIBRATIONS = registry.tools("calibrate")  # kind -> (module, what is calibrated)
 STATUS_TIMEOUT_S = 2.0
+
+CALIBRATE_DESCRIPTION = """\
+Fit the recognisers to one person: a few takes of each gesture they already know, made at the
+person's own pace, so that a person who swipes slowly (a line drawn in the air) is heard.
+
+The person makes each swipe --takes times: rest the hand, swipe once, take the hand away. The
+takes' speeds are stored as <data dir>/calibration/NAME.json; the running dynamic-gesture
+re-reads it and judges strokes by it whenever cbgo/user names the person."""
+
+CALIBRATE_EXAMPLES = """\
+examples:
+  cbgo gestures calibrate --user alice            # live, 3 takes of each swipe
+  cbgo gestures calibrate --user alice --takes 5
+  cbgo gestures calibrate --user alice --file alice-swipes.mcap
+  cbgo status dynamic-gesture                    # lines_mm_s: the lines in use"""
 
 RECORD_DESCRIPTION = """\
 Record a gesture by showing it, store it in the data directory and retrain, so that the
@@ -108,17 +126,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="where gestures and models live (default: the running service's, "
                              "else CBGO_DATA_DIR, else ~/.local/share/cbgo)")
     add_network_arguments(record)
+    calibrate = actions.add_parser(
+        "calibrate", help="fit the recognisers to one person from a few demonstrations",
+        description=CALIBRATE_DESCRIPTION, epilog=CALIBRATE_EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    calibrate.add_argument("--user", required=True, metavar="NAME",
+                           help="who is calibrated, as cbgo/user names them")
+    calibrate.add_argument("--takes", type=int, default=3, metavar="N",
+                           help="takes of each gesture [3]")
+    calibrate.add_argument("--file", default=None, metavar="MCAP",
+                           help="read the takes from a recording instead of the live stream")
+    calibrate.add_argument("--timeout", type=float, default=180.0, metavar="S",
+                           help="give up if the takes are not complete within S seconds [180]")
+    calibrate.add_argument("--data-dir", default=None, metavar="DIR",
+                           help="where calibrations live (default: the running service's, "
+                                "else CBGO_DATA_DIR, else ~/.local/share/cbgo)")
+    add_network_arguments(calibrate)
     listing = actions.add_parser("list", help="list the recorded gestures")
     listing.add_argument("--json", action="store_true", help="one JSON object per gesture")
 
 
-def _module(kind: str):
+def _module(kind: str, modules: dict[str, str] = MODULES):
     try:
-        return importlib.import_module(MODULES[kind])
+        return importlib.import_module(modules[kind])
     except ModuleNotFoundError as e:
         if e.name and MODULES[kind].startswith(e.name):
             fail(f"{kind} gestures by demonstration are not available in this installation "
-                 f"({MODULES[kind]} is missing)")
+                 f"({modules[kind]} is missing)")
         raise
 
 
@@ -209,6 +243,26 @@ def resolve_data_dir(args: argparse.Namespace, statuses: list[dict], service: st
     return Path(theirs[0])
 
 
+def _calibrate(args: argparse.Namespace) -> int:
+    """Runs each service's calibration for the user, in turn."""
+    if args.takes < 1:
+        fail("--takes must be at least 1", 2)
+    if args.file and not Path(args.file).is_file():
+        fail(f"no recording at {args.file}", 2)
+    for kind in CALIBRATIONS:
+        args.kind = kind
+        try:
+            if not args.file:
+                _use_running_service(args)
+            code = _module(kind, {k: m for k, (m, _) in CALIBRATIONS.items()}).run(args)
+        except ConnectError as e:
+            fail(str(e), e.code)
+            raise
+        if code:
+            return code
+    return 0
+
+
 def _use_running_service(args: argparse.Namespace) -> None:
     """Points this process at the running service's data directory (and served model)."""
     service = service_of(args.kind)
@@ -228,6 +282,8 @@ def run(args: argparse.Namespace) -> int:
     """Dispatches ``record`` to the gesture kind's module, or lists recordings."""
     if args.action == "list":
         return _list(args.json)
+    if args.action == "calibrate":
+        return _calibrate(args)
     if args.frames is not None and args.frames < 1 or args.takes < 1:
         fail("--frames and --takes must be at least 1", 2)
     if args.simulate and args.kind != "static":

@@ -172,3 +172,27 @@ def test_status_names_the_gestures_the_trajectory_network_gives_an_opinion_on(bu
     ok, status = bus.query("status", None)
     assert ok and status["second_opinion"] == ["swipe_up", "swipe_down", "swipe_left",
                                                "swipe_right", "rotate"]
+
+
+def test_a_calibrated_user_is_judged_by_their_pace_and_others_by_the_settings(
+        tmp_path, monkeypatch, synth):
+    from cbgo.services.dynamic_gesture.pace import Pace, calibration_path, save_pace
+
+    monkeypatch.setenv("CBGO_DATA_DIR", str(tmp_path))
+    save_pace(calibration_path(tmp_path, "ann"), Pace("ann", 150.0, 12), {})
+    bus = FakeBus(DynamicGesture(DynamicGestureSettings(user_dir=str(tmp_path / "g"))))
+    try:
+        # a brisk first stroke, then a slow swipe left (about 160 mm/s): a line drawn
+        slow_after_first = [*SWIPE_UP, ("move", 1.3, (-130.0, 0.0, 0.0)), ("hold", 0.6)]
+        finals = [m for _, m in play(bus, synth, slow_after_first) if m["final"]]
+        assert len(finals) == 1  # the slow swipe is a slow move by the settings' lines
+        bus.feed(keys.USER, {"v": 1, "ts": T0, "user": "ann"})
+        ok, status = bus.query("status", None)
+        assert ok and status["user"] == "ann" and status["lines_mm_s"]["final"] < 150.0
+        finals = [m for _, m in play(bus, synth, slow_after_first, hand_id=2) if m["final"]]
+        assert len(finals) == 2 and winner(finals[-1]) == "swipe_left"
+        bus.feed(keys.USER, {"v": 1, "ts": T0, "user": "bob"})  # not calibrated
+        ok, status = bus.query("status", None)
+        assert status["lines_mm_s"]["final"] == DynamicGestureSettings().min_peak_speed_mm_s
+    finally:
+        bus.stop()

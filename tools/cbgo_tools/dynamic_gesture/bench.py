@@ -89,6 +89,7 @@ from cbgo.simuser.scenario import load_scenario
 from cbgo.simuser.user import SimulatedUser
 from cbgo_tools.data import shrec
 from cbgo_tools.dynamic_gesture import (
+    calibration,
     crossset,
     live,
     plainstrokes,
@@ -139,6 +140,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="instead of the above: every real development set in the cache "
                              "and the continuous streams, replayed offline through the "
                              "service's logic (--templates), in one table (`crossset`)")
+    parser.add_argument("--calibration", action="store_true",
+                        help="instead of the above: each person of the cached real sets "
+                             "calibrated from k = 0, 1, 3, 5 of their own swipes (as `cbgo "
+                             "gestures calibrate` does), scored on their other recordings "
+                             "and streams (`calibration`)")
     parser.add_argument("--segmenter", action="append", default=[], metavar="KEY=VALUE",
                         help="with --sets: replay with this segmenter setting changed "
                              "(SegmenterConfig's fields; repeatable)")
@@ -518,6 +524,12 @@ def run(args: argparse.Namespace) -> int:
         return run_replay_sim(args)
     if args.sets:
         return run_sets(args)
+    if args.calibration:
+        rows = calibration.run(Library(args.templates, None).load().classifier(), replay_trial,
+                               args.seed)
+        if args.json:
+            args.json.write_text(json.dumps(rows, indent=1))
+        return 0
     if args.plain_strokes > 0:
         return run_plain_strokes(args)
     if args.realism is not None:

@@ -1,0 +1,97 @@
+"""A person's pace: calibration takes, the lines they set, the file, the recorder."""
+
+import json
+import os
+
+import pytest
+
+from cbgo.services.dynamic_gesture import calibrate, pace
+from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig
+
+REST = ("hold", 0.6)
+
+
+def appearance(synth, move, t0=0.0, hand_id=1):
+    """One appearance of the hand: rest, the move, rest; frames (t, hands) from t0."""
+    traj = synth.trajectory([REST, ("move", *move), ("hold", 0.5)])
+    return [(t0 + t, [synth.hand(p, r, hand_id)]) for t, p, r in traj]
+
+
+def test_a_slow_persons_lines_lie_below_their_slowest_swipe():
+    slow = pace.Pace("ann", 160.0, 6).applied(SegmenterConfig())
+    assert slow.min_peak_speed_mm_s == pytest.approx(pace.PACE_SHARE * 160.0)
+    assert slow.first_peak_speed_mm_s <= slow.min_peak_speed_mm_s
+    assert slow.mid_peak_speed_mm_s < SegmenterConfig().mid_peak_speed_mm_s
+
+
+def test_a_fast_persons_calibration_leaves_the_lines_as_configured():
+    fast = pace.Pace("bob", 900.0, 6).applied(SegmenterConfig())
+    assert fast == SegmenterConfig()
+
+
+def test_no_line_goes_below_the_floor():
+    crawling = pace.Pace("cy", 40.0, 6).applied(SegmenterConfig())
+    assert crawling.min_peak_speed_mm_s == pace.PACE_FLOOR_MM_S
+
+
+def test_the_take_is_the_stroke_that_goes_farthest_the_asked_way(synth):
+    frames = appearance(synth, (0.5, (-150, 0, 0)))
+    segmenter = Segmenter(calibrate.unlined())
+    windows = [w for t, hands in frames for w in segmenter.update(t, hands)]
+    assert pace.swipe_take(windows, "swipe_left") is not None
+    assert pace.swipe_take(windows, "swipe_right") is None
+    assert pace.swipe_take(windows, "swipe_up") is None
+
+
+def test_a_calibration_file_round_trips_and_a_broken_one_is_named(tmp_path):
+    path = pace.calibration_path(tmp_path, "ann")
+    pace.save_pace(path, pace.Pace("ann", 170.0, 4), {"swipe_left": [170.0, 190.0]})
+    assert pace.read_pace(path) == pace.Pace("ann", 170.0, 4)
+    path.write_text(json.dumps({"format": "other"}))
+    with pytest.raises(ValueError, match="not a calibration file"):
+        pace.read_pace(path)
+
+
+def test_paces_are_re_read_when_the_file_changes_and_broken_ones_are_listed(tmp_path):
+    paces = pace.Paces(tmp_path / "calibration")
+    assert paces.get("ann") is None
+    path = pace.calibration_path(tmp_path, "ann")
+    pace.save_pace(path, pace.Pace("ann", 170.0, 4), {})
+    assert paces.get("ann").slowest_mm_s == 170.0
+    path.write_text("{")
+    os.utime(path, (1, 1))
+    assert paces.get("ann") is None and "ann" in paces.skipped
+
+
+def test_the_recorder_takes_one_swipe_per_appearance_and_asks_again_for_a_wrong_way(
+        synth, monkeypatch):
+    recorder = calibrate.SwipeRecorder(1, ("swipe_left", "swipe_right"))
+    said = []
+    monkeypatch.setattr(calibrate.demonstrate, "say", said.append)  # what the person is told
+    t = 0.0
+    for hand_id, move in enumerate([(0.8, (0, 120, 0)),      # up: not the asked swipe left
+                                    (1.4, (-120, 0, 0)),     # a slow swipe left
+                                    (1.4, (120, 0, 0))], 1):  # a slow swipe right
+        frames = appearance(synth, move, t, hand_id)
+        for ft, hands in frames:
+            recorder.feed(ft, hands)
+        recorder.feed(frames[-1][0] + 0.05, [])  # the hand leaves
+        t = frames[-1][0] + 1.0
+    assert recorder.done and recorder.refused == 1
+    assert any("no swipe left seen" in line for line in said)
+    assert set(recorder.peaks()) == {"swipe_left", "swipe_right"}
+    slowest = min(w.peak_mm_s for w in recorder.takes)
+    assert slowest < SegmenterConfig().min_peak_speed_mm_s  # heard only once calibrated
+
+
+def test_a_calibration_is_saved_where_the_service_reads_it(tmp_path, monkeypatch, synth):
+    monkeypatch.setenv("CBGO_DATA_DIR", str(tmp_path))
+    monkeypatch.setattr(calibrate.demonstrate, "say", lambda text: None)
+    recorder = calibrate.SwipeRecorder(1, ("swipe_left",))
+    frames = appearance(synth, (1.0, (-120, 0, 0)))
+    for t, hands in [*frames, (frames[-1][0] + 0.05, [])]:
+        recorder.feed(t, hands)
+    assert calibrate.finish(recorder, "ann") == 0
+    saved = pace.read_pace(tmp_path / "calibration" / "ann.json")
+    assert saved.takes == 1 and saved.slowest_mm_s == pytest.approx(recorder.takes[0].peak_mm_s)
+    assert calibrate.finish(calibrate.SwipeRecorder(1), "bob") == 1  # nothing captured
