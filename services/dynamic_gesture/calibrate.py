@@ -164,7 +164,7 @@ def finish(recorder: SwipeRecorder, user: str) -> int:
     path = calibration_path(data_dir(), user)
     save_pace(path, pace, recorder.peaks())
     lines = pace.applied(SegmenterConfig())
-    demonstrate.say(f"saved {user}'s calibration to {path}: slowest swipe "
-                     f"{pace.slowest_mm_s:.0f} mm/s, strokes heard from "
-                     f"{lines.min_peak_speed_mm_s:.0f} mm/s while cbgo/user names {user}")
+    demonstrate.say(f"saved {user}'s calibration to {path}: typical swipe "
+                    f"{pace.typical_mm_s:.0f} mm/s, strokes heard from "
+                    f"{lines.min_peak_speed_mm_s:.0f} mm/s while cbgo/user names {user}")
     return 0

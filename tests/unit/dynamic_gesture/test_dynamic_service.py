@@ -179,7 +179,7 @@ def test_a_calibrated_user_is_judged_by_their_pace_and_others_by_the_settings(
     from cbgo.services.dynamic_gesture.pace import Pace, calibration_path, save_pace
 
     monkeypatch.setenv("CBGO_DATA_DIR", str(tmp_path))
-    save_pace(calibration_path(tmp_path, "ann"), Pace("ann", 150.0, 12), {})
+    save_pace(calibration_path(tmp_path, "ann"), Pace("ann", 190.0, 12), {})
     bus = FakeBus(DynamicGesture(DynamicGestureSettings(user_dir=str(tmp_path / "g"))))
     try:
         # a brisk first stroke, then a slow swipe left (about 160 mm/s): a line drawn

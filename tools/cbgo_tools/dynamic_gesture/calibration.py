@@ -28,6 +28,7 @@ from cbgo_tools.dynamic_gesture import scoring, streams, trials
 from cbgo_tools.dynamic_gesture.scoring import NOTHING
 
 KS = (0, 1, 3, 5)
+STREAMS_PER_PERSON = 3  # a stream or two per person move the false-trigger rate by half
 
 
 def take_of(trial: trials.Trial):
@@ -84,7 +85,8 @@ def score_set(name: str, root: Path, classifier, replay, seed: int, ks=KS,
             if device == "shrec17" and streams_too:
                 config = (person_config(mine, k, rng, person) if k else None) or SegmenterConfig()
                 sequences_of = [s for s in sequences if str(s.person) == person]
-                for frames, spans in streams.person_streams(sequences_of, 1, rng):
+                for frames, spans in streams.person_streams(sequences_of, STREAMS_PER_PERSON,
+                                                            rng):
                     swipes, others = streams.split_spans(spans)
                     stream_rows.append(streams.replay_stream(classifier, frames, swipes,
                                                              others, config))
