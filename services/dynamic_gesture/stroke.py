@@ -41,6 +41,10 @@ Segmentation, per hand id (the paper's strokes, found where real people make the
   back while it runs and dropped if the hand is lost on its way: it is the hand leaving;
 - after a stroke the hand must be slow again (for ``rest_s``, counted from the end of the
   stroke's slow hold) before the next one, except after a turn back;
+- a hand's first stroke since it came into view is judged by ``first_peak_speed_mm_s``
+  instead of the slow-move line below (when lower); a final window that passed by it alone is
+  held back until the hand rests `PENDING_S`, leaves, or makes its next stroke, which drops it
+  when `PREPARATION_FASTER` times as fast (it was that stroke's preparation);
 - a window that has not moved ``min_extent_mm`` from its start is a twitch, and one that
   never went faster than ``min_peak_speed_mm_s`` (in a tenth of its samples: `FAST_PERCENTILE`)
   nor rolled faster than ``min_peak_roll_deg_s`` with the roll most of its motion (a rotate)
@@ -91,6 +95,14 @@ PARTIAL_P = 0.65
 # NEW_HAND_WAIT_S are reported only from NEW_HAND_P. The first reported gesture of the
 # held-out real people measures it (`cbgo train dynamic --real DIR --folds 4`; live, `cbgo
 # bench dynamic --real ~/.cache/cbgo/leapmotion-swipes --per-class 0`).
+# A hand's first stroke heard only by the first-stroke line (a slow move) is held back until the
+# hand has rested PENDING_S after it, has left, or makes its next stroke: a next stroke
+# PREPARATION_FASTER times as fast or more makes it that stroke's preparation (the slow move to
+# a swipe's start, which reads as the opposite swipe: `cbgo bench dynamic --replay-sim 100`),
+# and it is dropped; a slower next stroke (a slow swiper's return) lets it out first. The same
+# ratio tells a preparation from a gesture in `ReturnFilter`.
+PENDING_S = 1.0
+PREPARATION_FASTER = 1.5
 NEW_HAND_S = 0.15
 NEW_HAND_WAIT_S = 0.5
 NEW_HAND_P = 0.9
@@ -384,6 +396,8 @@ class _Track:
         self.since_eval = 0
         self.stroke_id = 0
         self.evaluated = 0  # strokes of this hand whose final window was evaluated
+        self.pending: Window | None = None  # a slow first stroke's final window, held back
+        self.ready: list[Window] = []  # windows released, to go out with the next ones
         self.raw_palm: np.ndarray | None = None  # the palm as the tracker last reported it
         self.jumped = np.zeros(3)  # the tracker's jumps so far, taken out of the palm's path
         self.steps: deque[float] = deque(maxlen=JUMP_HISTORY)  # last frame-to-frame speeds
@@ -407,6 +421,7 @@ class Segmenter:
         self.eval_every = max(1, round(c.eval_period_s * RATE_HZ))
         self.max_samples = max(c.min_samples, round(c.max_stroke_s * RATE_HZ))
         self.onset_samples = max(self.rest_samples, round(ONSET_S * RATE_HZ))
+        self.pending_samples = max(1, round(PENDING_S * RATE_HZ))
         self.tracks: dict[int, _Track] = {}
         self.strokes = 0
         self.jumps = 0
@@ -451,15 +466,48 @@ class Segmenter:
         return out
 
     def _lost(self, track: _Track) -> list[Window]:
-        """Ends the stroke of a hand that disappeared with what was seen of it."""
+        """Ends the stroke of a hand that disappeared with what was seen of it.
+
+        A slow first stroke still held back goes out: the hand left after it, so it prepared
+        nothing.
+        """
         self.tracks.pop(track.hand_id, None)
-        if track.stroke is None:
-            return []
-        sample = track.resampler.flush()
-        if sample is not None:
-            track.stroke.append(self._rates(track, sample))
-        window = self._finish(track, len(track.stroke), "lost")
-        return [window] if window is not None else []
+        window = None
+        if track.stroke is not None:
+            sample = track.resampler.flush()
+            if sample is not None:
+                track.stroke.append(self._rates(track, sample))
+            window = self._finish(track, len(track.stroke), "lost")
+        out = self._settle(track, window)
+        if track.pending is not None:
+            self._release(track)
+            out = track.ready + out
+        return out
+
+    def _release(self, track: _Track) -> None:
+        """Sends the held-back window of a slow first stroke out (it counts as evaluated)."""
+        if track.pending is not None:
+            track.ready.append(track.pending)
+            track.pending = None
+            track.evaluated += 1
+
+    def _settle(self, track: _Track, window: Window | None) -> list[Window]:
+        """Returns the windows ready to go out, deciding a held-back slow first stroke.
+
+        The next stroke's first window decides it: a move `PREPARATION_FASTER` times as fast
+        or more made it a preparation (dropped); anything else lets it out first.
+        """
+        out, track.ready = track.ready, []
+        if window is None:
+            return out
+        held = track.pending
+        if held is not None and window.stroke != held.stroke:
+            track.pending = None
+            if window.peak_mm_s < PREPARATION_FASTER * held.peak_mm_s:
+                track.evaluated += 1
+                out.append(held)
+        out.append(window)
+        return out
 
     def _palm(self, track: _Track, t: float, hand: dict) -> np.ndarray:
         """Returns the palm position with the tracker's jumps taken out of its path.
@@ -503,9 +551,7 @@ class Segmenter:
         out = []
         for sample in track.resampler.add(t, palm, roll,
                                           hand["grab_strength"], hand["pinch_strength"]):
-            window = self._add_sample(track, sample)
-            if window is not None:
-                out.append(window)
+            out += self._settle(track, self._add_sample(track, sample))
         return out
 
     def _rates(self, track: _Track, sample: np.ndarray) -> np.ndarray:
@@ -528,6 +574,8 @@ class Segmenter:
         if moving and track.rest >= self.rest_samples:
             return self._start(track)
         track.rest = track.rest + 1 if (self._in_centre(sample) and not moving) else 0
+        if track.pending is not None and track.rest >= self.pending_samples:
+            self._release(track)  # the hand rested after its slow first stroke
         return None
 
     def _in_centre(self, sample: np.ndarray) -> bool:
@@ -635,8 +683,16 @@ class Segmenter:
         window = self._window(track, samples, final=True, reason=reason)
         if not self._worth_evaluating(window, track):
             return None
+        if self._slow_first(window, track):
+            track.pending = window
+            return None
         track.evaluated += 1
         return window
+
+    def _slow_first(self, window: Window, track: _Track) -> bool:
+        """Whether a final window passed only by its hand's first-stroke line (no roll)."""
+        return (track.evaluated == 0 and window.peak_mm_s < self.config.min_peak_speed_mm_s
+                and window.peak_roll_deg_s < self.config.min_peak_roll_deg_s)
 
     def _worth_evaluating(self, window: Window, track: _Track) -> bool:
         """Whether a window is more than a twitch, faster than a slow move and no exit.

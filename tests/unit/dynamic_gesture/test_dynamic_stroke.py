@@ -264,13 +264,38 @@ def test_a_slow_move_after_the_hands_first_stroke_is_not_evaluated(synth):
     assert [w.stroke for w in finals(synth.feed(Segmenter(lower), slow))] == [1, 2]
 
 
-def test_a_hands_first_stroke_is_heard_down_to_the_first_line(synth):
+def test_a_hands_first_stroke_is_heard_down_to_the_first_line_once_the_hand_rests(synth):
     # A person raises a hand, holds it still and draws a line in the air: 100 mm in 1 s
-    drawn = synth.trajectory([REST, ("move", 1.0, (100, 0, 0)), ("hold", 0.5)])
-    assert finals(synth.feed(Segmenter(), drawn))
+    drawn = synth.trajectory([REST, ("move", 1.0, (100, 0, 0)), ("hold", 1.2)])
+    (window,) = finals(synth.feed(Segmenter(), drawn))
+    assert window.t_end < drawn[-1][0] - stroke.PENDING_S  # held back until the hand rested
     assert synth.feed(Segmenter(ONE_LINE), drawn) == []
-    creeping = synth.trajectory([REST, ("move", 2.0, (100, 0, 0)), ("hold", 0.5)])  # 94 mm/s
+    creeping = synth.trajectory([REST, ("move", 2.0, (100, 0, 0)), ("hold", 1.2)])  # 94 mm/s
     assert synth.feed(Segmenter(), creeping) == []
+
+
+def test_a_slow_first_stroke_goes_out_when_the_hand_leaves(synth):
+    drawn = synth.trajectory([REST, ("move", 1.0, (100, 0, 0)), ("hold", 0.3)])
+    segmenter = Segmenter()
+    assert synth.feed(segmenter, drawn) == []
+    assert len(finals(segmenter.update(drawn[-1][0] + 0.05, []))) == 1
+
+
+def test_a_slow_first_stroke_before_a_much_faster_one_was_its_preparation(synth):
+    # the slow move to the swipe's start, a short rest, then the brisk swipe back
+    moves = synth.trajectory([REST, ("move", 1.0, (100, 0, 0)), ("hold", 0.4),
+                              ("move", 0.3, (-200, 0, 0)), ("hold", 1.2)])
+    windows = finals(synth.feed(Segmenter(), moves))
+    assert len(windows) == 1 and windows[0].obs[-1, 0] < -150
+
+
+def test_a_slow_first_stroke_goes_out_before_a_slower_return(synth):
+    moves = synth.trajectory([REST, ("move", 1.0, (100, 0, 0)), ("hold", 0.3),
+                              ("move", 1.2, (-100, 0, 0)), ("hold", 1.2)])
+    windows = finals(synth.feed(Segmenter(ONE_LINE), moves))
+    assert windows == []  # neither is more than a slow move by the usual line
+    windows = finals(synth.feed(Segmenter(), moves))
+    assert windows and windows[0].obs[-1, 0] > 80  # the line drawn, out first
 
 
 def test_a_brisk_move_below_the_running_threshold_is_evaluated_only_at_its_end(synth):
