@@ -30,7 +30,7 @@ from cbgo.services.dynamic_gesture.stroke import SegmenterConfig, Window
 FORMAT = "cbgo-calibration"
 # The lines lie at this share of the person's typical swipe speed. A lower share lowers the lines
 # of more people, and those whose swipes are brisk enough already get re-positioning reported:
-# at 0.5 the SHREC'17 people's streams read 1.7 false triggers per minute, at 0.75 0.8 (0.5
+# at 0.5 the SHREC'17 people's streams read 1.7 false triggers per minute, at 0.75 0.8 (0.4
 # uncalibrated), while GestureMidAir's slow swipers are all heard at either (`cbgo bench
 # dynamic --calibration`).
 PACE_SHARE = 0.75

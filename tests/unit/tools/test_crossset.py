@@ -30,3 +30,23 @@ def test_a_sets_row_scores_its_train_peoples_swipes(tmp_path, midair_set):
     lines = []
     crossset.print_table([{**row, "what": "synthetic"}], [], lines.append)
     assert any(line.startswith("| gesturemidair | synthetic | 1 | 2 |") for line in lines)
+
+
+def test_a_persons_calibration_never_uses_the_recording_it_scores():
+    import numpy as np
+
+    from cbgo.services.dynamic_gesture.pace import PACE_SHARE
+    from cbgo.services.dynamic_gesture.stroke import Window
+    from cbgo_tools.dynamic_gesture import calibration
+
+    def take(speed):
+        obs = np.zeros((6, 4))
+        obs[:, 0] = np.linspace(0, -120, 6)
+        return Window(1, "right", 1, np.arange(6) * 0.05, obs, True, 0.0, "slowed", speed,
+                      np.zeros(3), speed, 0.0, 1.0)
+
+    takes = [(0, "swipe_left", take(150.0)), (1, "swipe_left", take(170.0))]
+    rng = np.random.default_rng(0)
+    assert calibration.person_config([takes[0]], 1, rng, "ann", leave_out=0) is None
+    config = calibration.person_config(takes, 1, rng, "ann", leave_out=0)
+    assert config.min_peak_speed_mm_s == pytest.approx(PACE_SHARE * 170.0)
