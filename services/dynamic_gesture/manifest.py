@@ -15,7 +15,7 @@ MANIFEST = Manifest(
         "dynamic", "cbgo.services.dynamic_gesture.demonstrate", "a movement (dynamic-gesture)"
     ),
     calibrate=Tool(
-        "dynamic", "cbgo.services.dynamic_gesture.calibrate",
+        "dynamic", "cbgo.services.dynamic_gesture.user_pace",
         "the swipes' pace: a slow swiper is heard (dynamic-gesture)"
     ),
 )

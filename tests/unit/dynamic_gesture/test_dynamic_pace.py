@@ -5,7 +5,7 @@ import os
 
 import pytest
 
-from cbgo.services.dynamic_gesture import calibrate, pace
+from cbgo.services.dynamic_gesture import pace, user_pace
 from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig
 
 REST = ("hold", 0.6)
@@ -28,7 +28,7 @@ def test_a_slow_persons_lines_and_start_lie_below_their_typical_swipe():
 def test_the_typical_speed_is_the_median_take_so_more_takes_do_not_lower_it(synth):
     windows = []
     for seconds in (0.5, 0.6, 0.7, 1.6):  # the last one much slower than the others
-        segmenter = Segmenter(calibrate.unlined())
+        segmenter = Segmenter(user_pace.unlined())
         frames = appearance(synth, (seconds, (-150, 0, 0)))
         windows += [w for t, hands in frames for w in segmenter.update(t, hands) if w.final]
     typical = pace.pace_of("ann", windows).typical_mm_s
@@ -48,7 +48,7 @@ def test_no_line_goes_below_the_floor():
 
 def test_the_take_is_the_stroke_that_goes_farthest_the_asked_way(synth):
     frames = appearance(synth, (0.5, (-150, 0, 0)))
-    segmenter = Segmenter(calibrate.unlined())
+    segmenter = Segmenter(user_pace.unlined())
     windows = [w for t, hands in frames for w in segmenter.update(t, hands)]
     assert pace.swipe_take(windows, "swipe_left") is not None
     assert pace.swipe_take(windows, "swipe_right") is None
@@ -77,9 +77,9 @@ def test_paces_are_re_read_when_the_file_changes_and_broken_ones_are_listed(tmp_
 
 def test_the_recorder_takes_one_swipe_per_appearance_and_asks_again_for_a_wrong_way(
         synth, monkeypatch):
-    recorder = calibrate.SwipeRecorder(1, ("swipe_left", "swipe_right"))
+    recorder = user_pace.SwipeRecorder(1, ("swipe_left", "swipe_right"))
     said = []
-    monkeypatch.setattr(calibrate.demonstrate, "say", said.append)  # what the person is told
+    monkeypatch.setattr(user_pace.demonstrate, "say", said.append)  # what the person is told
     t = 0.0
     for hand_id, move in enumerate([(0.8, (0, 120, 0)),      # up: not the asked swipe left
                                     (1.4, (-120, 0, 0)),     # a slow swipe left
@@ -98,12 +98,12 @@ def test_the_recorder_takes_one_swipe_per_appearance_and_asks_again_for_a_wrong_
 
 def test_a_calibration_is_saved_where_the_service_reads_it(tmp_path, monkeypatch, synth):
     monkeypatch.setenv("CBGO_DATA_DIR", str(tmp_path))
-    monkeypatch.setattr(calibrate.demonstrate, "say", lambda text: None)
-    recorder = calibrate.SwipeRecorder(1, ("swipe_left",))
+    monkeypatch.setattr(user_pace.demonstrate, "say", lambda text: None)
+    recorder = user_pace.SwipeRecorder(1, ("swipe_left",))
     frames = appearance(synth, (1.0, (-120, 0, 0)))
     for t, hands in [*frames, (frames[-1][0] + 0.05, [])]:
         recorder.feed(t, hands)
-    assert calibrate.finish(recorder, "ann") == 0
+    assert user_pace.finish(recorder, "ann") == 0
     saved = pace.read_pace(tmp_path / "calibration" / "ann.json")
     assert saved.takes == 1 and saved.typical_mm_s == pytest.approx(recorder.takes[0].peak_mm_s)
-    assert calibrate.finish(calibrate.SwipeRecorder(1), "bob") == 1  # nothing captured
+    assert user_pace.finish(user_pace.SwipeRecorder(1), "bob") == 1  # nothing captured

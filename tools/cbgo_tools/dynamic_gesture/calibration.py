@@ -3,7 +3,7 @@
 ``cbgo bench dynamic --calibration`` measures `cbgo.services.dynamic_gesture.pace` as a user
 meets it (``cbgo gestures calibrate --user NAME --takes k``), with people kept apart: each
 person of a real set is calibrated from k takes of each swipe drawn from their own recordings
-(each take found as ``calibrate`` finds it: the stroke going farthest the swipe's way, no
+(each take found as `user_pace` finds it: the stroke going farthest the swipe's way, no
 slow-move line), and scored on their remaining recordings only: the swipes, the other gestures
 (which must stay unreported) and, for SHREC'17, continuous streams of their recordings (false
 triggers per minute outside the gestures). k = 0 is zero-shot: the lines as configured.
@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from cbgo.config import cache_dir
-from cbgo.services.dynamic_gesture.calibrate import unlined
 from cbgo.services.dynamic_gesture.pace import SWIPES, pace_of, swipe_take
 from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig
+from cbgo.services.dynamic_gesture.user_pace import unlined
 from cbgo_tools.dynamic_gesture import scoring, streams, trials
 from cbgo_tools.dynamic_gesture.scoring import NOTHING
 
@@ -32,7 +32,7 @@ STREAMS_PER_PERSON = 3  # a stream or two per person move the false-trigger rate
 
 
 def take_of(trial: trials.Trial):
-    """Returns a swipe trial's calibration take (`calibrate`'s rule), or None."""
+    """Returns a swipe trial's calibration take (`user_pace`'s rule), or None."""
     segmenter = Segmenter(unlined())
     windows = [w for t, hands in trial.frames() for w in segmenter.update(t, hands)]
     windows += segmenter.update(trial.frames()[-1][0] + 1.0, [])  # the hand leaves
