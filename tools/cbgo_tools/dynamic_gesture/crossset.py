@@ -48,7 +48,7 @@ class RealSet:
 
 
 REAL_SETS = (
-    RealSet("shrec17", "shrec17", "depth camera, 20 train people (fitted on)"),
+    RealSet("shrec17", "shrec17", "depth camera, 20 train people (the shipped library's)"),
     RealSet("gesturemidair", "gesturemidair", "Leap, 5 train people, lines drawn in the air"),
     RealSet("guinevere", "guinevere", "Leap (LeapJS), 4 people"),
     RealSet("leapmotion-swipes", "leapmotion-swipes", "Leap, 12 people's own swipes"),
