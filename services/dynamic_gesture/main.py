@@ -93,8 +93,9 @@ class DynamicGesture(Service):
 
     def __init__(self, settings: DynamicGestureSettings):
         super().__init__(settings)
-        self.segmenter = Segmenter(settings.segmenter())
-        self.paces = Paces(data_dir() / "calibration")
+        self.segmenter_config = settings.segmenter()  # the lines of a user without a pace
+        self.segmenter = Segmenter(self.segmenter_config)
+        self.paces = Paces(data_dir())
         self.user: str | None = None
         self.returns = ReturnFilter(settings.return_s)
         self.store = ModelStore(DEFAULT_PATH, trained_path(data_dir()), ("",), settings.model)
@@ -161,7 +162,7 @@ class DynamicGesture(Service):
 
     def _apply_pace(self) -> None:
         pace = self.paces.get(self.user) if self.user else None
-        base = self.settings.segmenter()
+        base = self.segmenter_config
         self.segmenter.retune(pace.applied(base) if pace else base)
 
     def classify(self, window: Window) -> np.ndarray:
@@ -216,10 +217,11 @@ class DynamicGesture(Service):
                              for t in self.library.templates],
                 "skipped": self.library.skipped, "strokes": self.segmenter.strokes,
                 "user": self.user,
-                # the slow-move lines in use: the user's pace, or the settings'
+                # the slow-move lines and start speed in use: the user's pace, or the settings'
                 "lines_mm_s": {"final": self.segmenter.config.min_peak_speed_mm_s,
                                "running": self.segmenter.config.mid_peak_speed_mm_s,
-                               "first": self.segmenter.config.first_peak_speed_mm_s},
+                               "first": self.segmenter.config.first_peak_speed_mm_s,
+                               "start": self.segmenter.config.start_speed_mm_s},
                 "calibration_skipped": self.paces.skipped,
                 "tracking_jumps": self.segmenter.jumps,
                 "returns": self.returns.returns,

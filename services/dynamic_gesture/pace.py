@@ -131,14 +131,14 @@ def read_pace(path: Path) -> Pace:
 class Paces:
     """Each user's calibration under a data directory, re-read when its file changes."""
 
-    def __init__(self, folder: Path):
-        self.folder = Path(folder)
+    def __init__(self, data_dir: Path):
+        self.data_dir = Path(data_dir)
         self._cache: dict[str, tuple[float, Pace | None]] = {}
         self.skipped: dict[str, str] = {}
 
     def get(self, user: str) -> Pace | None:
         """Returns the user's pace, None without a (usable) calibration file."""
-        path = self.folder / f"{user}.json"
+        path = calibration_path(self.data_dir, user)
         try:
             stamp = path.stat().st_mtime
         except OSError:

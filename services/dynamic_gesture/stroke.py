@@ -103,6 +103,9 @@ PARTIAL_P = 0.65
 # ratio tells a preparation from a gesture in `ReturnFilter`.
 PENDING_S = 1.0
 PREPARATION_FASTER = 1.5
+# The settings a person's pace sets (`pace.Pace.applied`, `Segmenter.retune`).
+PACE_FIELDS = ("min_peak_speed_mm_s", "mid_peak_speed_mm_s", "first_peak_speed_mm_s",
+               "start_speed_mm_s")
 NEW_HAND_S = 0.15
 NEW_HAND_WAIT_S = 0.5
 NEW_HAND_P = 0.9
@@ -431,13 +434,12 @@ class Segmenter:
         self.tracks.clear()
 
     def retune(self, config: SegmenterConfig) -> None:
-        """Takes the slow-move lines of `config` (a person's pace: `pace.Pace.applied`).
+        """Takes the `PACE_FIELDS` of `config` (a person's pace: `pace.Pace.applied`).
 
-        Only the lines are read on each stroke; the other settings stay as built.
+        They are read afresh on each sample; the other settings stay as built.
         """
-        self.config = replace(self.config, min_peak_speed_mm_s=config.min_peak_speed_mm_s,
-                              mid_peak_speed_mm_s=config.mid_peak_speed_mm_s,
-                              first_peak_speed_mm_s=config.first_peak_speed_mm_s)
+        self.config = replace(self.config, **{name: getattr(config, name)
+                                              for name in PACE_FIELDS})
 
     def update(self, t: float, hands: list[dict]) -> list[Window]:
         """Feeds one frame; returns the windows that became ready.
@@ -478,11 +480,9 @@ class Segmenter:
             if sample is not None:
                 track.stroke.append(self._rates(track, sample))
             window = self._finish(track, len(track.stroke), "lost")
-        out = self._settle(track, window)
-        if track.pending is not None:
+        if window is None:
             self._release(track)
-            out = track.ready + out
-        return out
+        return self._settle(track, window)
 
     def _release(self, track: _Track) -> None:
         """Sends the held-back window of a slow first stroke out (it counts as evaluated)."""
@@ -708,23 +708,23 @@ class Segmenter:
         c = self.config
         space = float(np.linalg.norm(window.obs[:, :3], axis=1).max())
         moved = float(np.linalg.norm(window.obs, axis=1).max()) >= c.min_extent_mm
-        final_line, mid_line = self.lines(track)
+        final_line, mid_line = self._lines(track)
         speed = final_line if window.final else max(final_line, mid_line)
         rolling = (window.peak_roll_deg_s >= c.min_peak_roll_deg_s
                    and float(np.abs(window.obs[:, 3]).max()) >= space)
         return moved and (window.peak_mm_s >= speed or rolling) and not self._exit(window)
 
-    def lines(self, track: _Track) -> tuple[float, float]:
+    def _lines(self, track: _Track) -> tuple[float, float]:
         """Returns the slow-move lines (final window, running window) for a hand's stroke.
 
         A hand's first stroke since it came into view and rested is judged by
         ``first_peak_speed_mm_s`` instead (when lower).
         """
         c = self.config
+        final = c.min_peak_speed_mm_s
         if track.evaluated == 0:
-            first = min(c.first_peak_speed_mm_s, c.min_peak_speed_mm_s)
-            return first, max(first, c.mid_peak_speed_mm_s)
-        return c.min_peak_speed_mm_s, c.mid_peak_speed_mm_s
+            final = min(c.first_peak_speed_mm_s, final)
+        return final, c.mid_peak_speed_mm_s
 
     @staticmethod
     def _exit(window: Window) -> bool:

@@ -35,7 +35,6 @@ from cbgo.services.dynamic_gesture.pace import (
 from cbgo.services.dynamic_gesture.stroke import Segmenter, SegmenterConfig, Window
 
 DEFAULT_TAKES = 3
-DEFAULT_TIMEOUT_S = 180.0
 
 
 def unlined(config: SegmenterConfig | None = None) -> SegmenterConfig:
@@ -107,22 +106,12 @@ class SwipeRecorder:
         return out
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Adds this module's flags (``cbgo gestures calibrate`` has the same)."""
-    from cbgo.client import add_network_arguments
-
-    parser.add_argument("--user", required=True, help="who is calibrated (as on cbgo/user)")
-    parser.add_argument("--takes", type=int, default=DEFAULT_TAKES,
-                        help=f"takes of each swipe [{DEFAULT_TAKES}]")
-    parser.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S,
-                        help=f"give up after S seconds [{DEFAULT_TIMEOUT_S:g}]")
-    parser.add_argument("--file", default=None,
-                        help="read hand frames from an MCAP recording instead of the network")
-    add_network_arguments(parser)
-
-
 def run(args: argparse.Namespace) -> int:
-    """Records the takes and writes the user's calibration.
+    """Records the takes and writes the user's calibration (``cbgo gestures calibrate``).
+
+    Args:
+        args: ``user``, ``takes``, ``timeout``, optionally ``file``, and the Zenoh flags of
+            `cbgo.client.add_network_arguments`.
 
     Returns:
         0 on success, 1 if the takes were not all captured in time, 2 for a bad user or file.
@@ -135,11 +124,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"cbgo: user name {args.user!r} is not valid: letters, digits, '_', '.', '-'",
               file=sys.stderr)
         return 2
-    takes = int(args.takes or DEFAULT_TAKES)
-    if takes < 1:
-        print("cbgo: --takes must be at least 1", file=sys.stderr)
-        return 2
-    recorder = SwipeRecorder(takes)
+    recorder = SwipeRecorder(int(args.takes or DEFAULT_TAKES))  # the CLI checked: ≥ 1
     if getattr(args, "file", None):
         try:
             demonstrate.record_from_file(recorder, args.file)

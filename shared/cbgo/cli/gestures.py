@@ -38,7 +38,8 @@ from cbgo.errors import ConfigError
 # kind -> (module, what is demonstrated), from the services' manifests (``demonstrate``)
 DEMONSTRATIONS = registry.tools("demonstrate")
 MODULES = {kind: module for kind, (module, _) in DEMONSTRATIONS.items()}
-CALIBRATIONS = registry.tools("calibrate")  # kind -> (module, what is calibrated)
+# kind -> module of each service's calibration to one person, from the manifests (``calibrate``)
+CALIBRATE_MODULES = {kind: module for kind, (module, _) in registry.tools("calibrate").items()}
 STATUS_TIMEOUT_S = 2.0
 
 CALIBRATE_DESCRIPTION = """\
@@ -150,7 +151,7 @@ def _module(kind: str, modules: dict[str, str] = MODULES):
     try:
         return importlib.import_module(modules[kind])
     except ModuleNotFoundError as e:
-        if e.name and MODULES[kind].startswith(e.name):
+        if e.name and modules[kind].startswith(e.name):
             fail(f"{kind} gestures by demonstration are not available in this installation "
                  f"({modules[kind]} is missing)")
         raise
@@ -249,12 +250,14 @@ def _calibrate(args: argparse.Namespace) -> int:
         fail("--takes must be at least 1", 2)
     if args.file and not Path(args.file).is_file():
         fail(f"no recording at {args.file}", 2)
-    for kind in CALIBRATIONS:
+    if args.file and args.data_dir:  # no service asked: the directory given is the one
+        os.environ["CBGO_DATA_DIR"] = str(Path(args.data_dir).expanduser())
+    for kind in CALIBRATE_MODULES:
         args.kind = kind
         try:
             if not args.file:
                 _use_running_service(args)
-            code = _module(kind, {k: m for k, (m, _) in CALIBRATIONS.items()}).run(args)
+            code = _module(kind, CALIBRATE_MODULES).run(args)
         except ConnectError as e:
             fail(str(e), e.code)
             raise

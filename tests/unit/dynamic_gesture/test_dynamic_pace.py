@@ -65,7 +65,7 @@ def test_a_calibration_file_round_trips_and_a_broken_one_is_named(tmp_path):
 
 
 def test_paces_are_re_read_when_the_file_changes_and_broken_ones_are_listed(tmp_path):
-    paces = pace.Paces(tmp_path / "calibration")
+    paces = pace.Paces(tmp_path)
     assert paces.get("ann") is None
     path = pace.calibration_path(tmp_path, "ann")
     pace.save_pace(path, pace.Pace("ann", 170.0, 4), {})

@@ -189,6 +189,7 @@ def test_a_calibrated_user_is_judged_by_their_pace_and_others_by_the_settings(
         bus.feed(keys.USER, {"v": 1, "ts": T0, "user": "ann"})
         ok, status = bus.query("status", None)
         assert ok and status["user"] == "ann" and status["lines_mm_s"]["final"] < 150.0
+        assert status["lines_mm_s"]["start"] < DynamicGestureSettings().start_speed_mm_s
         finals = [m for _, m in play(bus, synth, slow_after_first, hand_id=2) if m["final"]]
         assert len(finals) == 2 and winner(finals[-1]) == "swipe_left"
         bus.feed(keys.USER, {"v": 1, "ts": T0, "user": "bob"})  # not calibrated

@@ -34,8 +34,9 @@ STREAMS_PER_PERSON = 3  # a stream or two per person move the false-trigger rate
 def take_of(trial: trials.Trial):
     """Returns a swipe trial's calibration take (`user_pace`'s rule), or None."""
     segmenter = Segmenter(unlined())
-    windows = [w for t, hands in trial.frames() for w in segmenter.update(t, hands)]
-    windows += segmenter.update(trial.frames()[-1][0] + 1.0, [])  # the hand leaves
+    frames = trial.frames()
+    windows = [w for t, hands in frames for w in segmenter.update(t, hands)]
+    windows += segmenter.update(frames[-1][0] + 1.0, [])  # the hand leaves
     return swipe_take(windows, trial.truth)
 
 
@@ -85,11 +86,8 @@ def score_set(name: str, root: Path, classifier, replay, seed: int, ks=KS,
             if device == "shrec17" and streams_too:
                 config = (person_config(mine, k, rng, person) if k else None) or SegmenterConfig()
                 sequences_of = [s for s in sequences if str(s.person) == person]
-                for frames, spans in streams.person_streams(sequences_of, STREAMS_PER_PERSON,
-                                                            rng):
-                    swipes, others = streams.split_spans(spans)
-                    stream_rows.append(streams.replay_stream(classifier, frames, swipes,
-                                                             others, config))
+                played = streams.person_streams(sequences_of, STREAMS_PER_PERSON, rng)
+                stream_rows.append(streams.replay_played(classifier, played, config))
         block = scoring.score(scored, "dynamic")
         swipes = [r for r in scored if r["truth"] != "none"]
         row = {"set": name, "k": k, "people": len({r["person"] for r in swipes}),

@@ -102,21 +102,15 @@ def stream_rows(classifier, config: SegmenterConfig, sim_users: int, seed: int) 
     if root.is_dir():
         _, _, sequences = trials.real_trials(root, "train")
         played = streams.stream_sets("shrec17", [], sequences, 20, seed)
-        out.append({"set": "shrec17 train people", **_replayed(classifier, played, config)})
+        out.append({"set": "shrec17 train people",
+                    **streams.replay_played(classifier, played, config)})
     root = cache_dir() / "guinevere"
     if root.is_dir():
         device, chosen, _ = trials.real_trials(root, "train")
         played = streams.stream_sets(device, chosen, [], 4, seed, returns=True)
-        out.append({"set": "guinevere, with returns", **_replayed(classifier, played, config)})
+        out.append({"set": "guinevere, with returns",
+                    **streams.replay_played(classifier, played, config)})
     return out
-
-
-def _replayed(classifier, played: list[tuple], config: SegmenterConfig) -> dict:
-    rows = []
-    for frames, spans in played:
-        swipes, others = streams.split_spans(spans)
-        rows.append(streams.replay_stream(classifier, frames, swipes, others, config))
-    return scoring.stream_totals(rows)
 
 
 def run(classifier, overrides: dict, sim_users: int, seed: int, replay, log=print) -> dict:

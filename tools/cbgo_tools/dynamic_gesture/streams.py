@@ -335,6 +335,12 @@ def replay_stream(classifier, frames: list[tuple], strokes: list[tuple], others:
     return stream_figures(reports, strokes, frames[-1][0] - frames[0][0], others)
 
 
+def replay_played(classifier, played: list[tuple], config) -> dict:
+    """Returns the totals of (frames, spans) streams (`stream_sets`) replayed offline."""
+    return stream_totals([replay_stream(classifier, frames, *split_spans(spans), config)
+                          for frames, spans in played])
+
+
 def synthetic_streams(classifier, users: int, seed: int, config, ranges) -> dict:
     """Returns the totals of `users` simulated users' streams (`stream_scenario`), offline."""
     return stream_totals([score_stream(classifier, stream_scenario(seed + i, ranges), config)
