@@ -43,9 +43,9 @@
 
 5. **Plain strokes** (``--plain-strokes REPS``): textbook minimum-jerk swipes and rotates on a
    grid of length (or angle) and duration, from random places in the field, tilted, bowed and
-   rolling, after a rest or drifting in (`plainstrokes`), replayed offline like
-   ``--replay-sim``: no simulated person's habits, so where in length and duration a stroke
-   stops being heard.
+   rolling, rotates with the palm drifting, after a rest or drifting in (`plainstrokes`),
+   replayed offline like ``--replay-sim``: no simulated person's habits, so where in length
+   and duration a stroke stops being heard.
 
 Every live run and the simulated streams end with the acceptance goals, judged on the figures
 just measured (`scoring.live_goals`, `scoring.stream_goals`).
@@ -64,6 +64,9 @@ Examples::
     cbgo bench dynamic --replay-sim 100        # 500 such trials, offline, in about 3 min
     cbgo bench dynamic --plain-strokes 2       # textbook strokes on a grid: what is heard
     cbgo bench dynamic --plain-strokes 2 --mirror   # ... made by a left hand
+    cbgo bench dynamic --sets --streams-sim 20   # every real set and the streams, one table
+    cbgo train dynamic --out /tmp/simonly.json && \
+        cbgo bench dynamic --sets --left-out /tmp/simonly.json   # + leave-one-set-out
     cbgo bench dynamic --users 6 --no-latency --json /tmp/dynamic.json
     cbgo bench dynamic --ranges train          # held-out users inside the training range
 """
@@ -145,6 +148,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "calibrated from k = 0, 1, 3, 5 of their own swipes (as `cbgo "
                              "gestures calibrate` does), scored on their other recordings "
                              "and streams (`calibration`)")
+    parser.add_argument("--left-out", type=Path, default=None, metavar="LIB",
+                        help="with --sets: a library fitted on none of the real sets the "
+                             "--templates one was (`cbgo train dynamic --out LIB`: simulated "
+                             "users only), for their leave-one-set-out column")
     parser.add_argument("--segmenter", action="append", default=[], metavar="KEY=VALUE",
                         help="with --sets: replay with this segmenter setting changed "
                              "(SegmenterConfig's fields; repeatable)")
@@ -472,7 +479,10 @@ def run_sets(args: argparse.Namespace) -> int:
         print(e, file=sys.stderr)
         return 2
     classifier = Library(args.templates, None).load().classifier()
-    result = crossset.run(classifier, overrides, args.streams_sim, args.seed, replay_trial)
+    left_out = None if args.left_out is None else \
+        Library(args.left_out, None).load().classifier()
+    result = crossset.run(classifier, overrides, args.streams_sim, args.seed, replay_trial,
+                          left_out=left_out)
     if args.json:
         args.json.write_text(json.dumps(result, indent=1))
     return 0

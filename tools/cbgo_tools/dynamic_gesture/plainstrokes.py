@@ -6,7 +6,8 @@ minimum-jerk move of a right hand held palm down (`HandShape.default`, `neutral_
 length and a duration taken from a grid, from a random place in the field, tilted off its
 direction, bowed in and out of the sensor's plane, the palm rolling on the way. Before it the
 hand drifts in slowly or rests; after it the hand holds, comes back more slowly and holds
-again. A rotate rolls the palm in place by an angle from the grid. Each trial goes through the
+again. A rotate rolls the palm by an angle from the grid while the palm drifts up to
+`ROTATE_DRIFT_MM` any way, as a person's palm does when it turns. Each trial goes through the
 service's segmenter, return filter and library offline (`bench.replay_trial`), as the live
 service answers it.
 
@@ -36,6 +37,7 @@ ROTATE_DEG = (40.0, 60.0, 80.0, 100.0, 130.0)
 TILT_DEG = 25.0  # a swipe's direction is off by up to this, in the sensor's plane
 BOW = 0.2  # its middle bows up to this share of its length, sideways and in depth
 ROLL_DEG = 45.0  # its palm rolls up to this and back on the way
+ROTATE_DRIFT_MM = 40.0  # a rotate's palm drifts up to this far, any way, while it turns
 DRIFT_MM_S = 60.0  # the hand drifting in before a stroke without rest ...
 DRIFT_S = 0.4  # ... for this long
 FIELD = (np.array([-160.0, 130.0, -90.0]), np.array([160.0, 370.0, 90.0]))
@@ -62,7 +64,9 @@ def draw(gesture: str, column: int, seconds: float, rest: bool, rng: np.random.G
     """Returns a stroke of the grid's `column` size and `seconds`, the rest drawn at random."""
     if gesture == "rotate":
         start = rng.uniform(*FIELD)
-        return Stroke(gesture, ROTATE_DEG[column], seconds, start, np.zeros(3), np.zeros(3),
+        way = rng.normal(size=3)
+        drift = rng.uniform(0.0, ROTATE_DRIFT_MM) * way / np.linalg.norm(way)
+        return Stroke(gesture, ROTATE_DEG[column], seconds, start, drift, np.zeros(3),
                       float(np.radians(ROTATE_DEG[column])), rest)
     length = LENGTHS_MM[column]
     way = SWIPE_DIRECTIONS[gesture]

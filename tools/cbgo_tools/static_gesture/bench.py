@@ -23,6 +23,10 @@ Figures (the goals in brackets; `GOALS`, printed as PASS/MISS lines at the end):
    tracking, people never seen; when ``cbgo data fetch collaborice`` has copied its train
    folder to the cache): per pose file, the share of frames right, each read alone, and what
    the others were read as.
+1f. **Calibration to one person** (``--calibration``, then nothing else is measured): k = 1,
+   3, 5 recorded takes per pose of each CollaborICE person, the model retrained with them as
+   ``cbgo gestures record`` does, scored on that person's other takes beside zero-shot
+   (``calibration``).
 2. **Held-out simulated users**: gestures performed by simulated people from a seed stream the
    trainer never uses (a new hand per rendition), plus no-gesture poses when the model has that
    class: balanced accuracy, ECE, confusion; and simulated users performing the ``static-all``
@@ -90,7 +94,7 @@ from cbgo.services.static_gesture.classifier import (
     default_model_path,
 )
 from cbgo_tools.data import collaborice, guinevere, ultraleap
-from cbgo_tools.static_gesture import crossval, takes
+from cbgo_tools.static_gesture import calibration, crossval, takes
 
 EVAL_RELATIVE = Path("..") / "shared" / "eval" / "leap_static_features_test.npz"
 THUMB_PERCENTILES = (1, 5, 50, 95)
@@ -130,6 +134,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", type=Path, default=None, metavar="DIR",
                         help="also draw the cross-validation's changing hands, by how far "
                              "through their change they are, as DIR/transitions.png")
+    parser.add_argument("--calibration", action="store_true",
+                        help="only measure calibration to one person: k = 1, 3, 5 recorded "
+                             "takes per pose of each CollaborICE person, the model retrained "
+                             "with them, scored on their other takes "
+                             "(cbgo_tools.static_gesture.calibration; minutes per k)")
     parser.add_argument("--takes", nargs="+", default=None, metavar="LABEL=FILE.mcap",
                         help="only score recorded takes (`cbgo record ... hands/frame` while "
                              "one pose is held; a label the model does not know, or none, is "
@@ -607,6 +616,11 @@ def run(args: argparse.Namespace) -> int:
     if args.eval is not None and eval_path is None:
         print(f"cbgo bench static: --eval {args.eval}: no such file")
         return 2
+    if args.calibration:
+        fig["calibration"] = calibration.run(clf, eval_path, recipe_of(clf))
+        if args.json is not None:
+            args.json.write_text(json.dumps(fig, indent=1) + "\n")
+        return 0 if fig["calibration"] is not None else 2
     if eval_path is not None:
         fig["real"] = real_test(clf, eval_path)
     fig["ultraleap"] = ultraleap.score_poses(clf)
