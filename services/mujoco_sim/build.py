@@ -3,7 +3,9 @@
 Rules:
 - the robot base frame is MuJoCo's world frame: +x away from the robot, +z up, table top z = 0;
 - an object's contract ``position`` is its geometric centre; its ``size`` is a cup's height,
-  a box's edge, a drawer cabinet's edge (drawers are cubes that open towards the robot, -x);
+  a box's edge, a drawer cabinet's edge (drawers are cubes that open along x towards the
+  middle of the table, as `cbgo.world.scene.drawer_direction` says: a cabinet that opens away
+  from the robot is the same cabinet turned by 180° about z);
 - objects are placed where the scene says in x/y, and in z on what they stand on (``on``,
   ``inside``, the table), so nothing starts interpenetrating; the caller settles the physics;
 - every movable object (and each drawer) gets an inactive weld to the hand, switched on only
@@ -23,7 +25,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from cbgo.world.scene import DRAWER_FLOOR
+from cbgo.world.scene import DRAWER_FLOOR, drawer_direction
 from cbgo.world.workspace import DRAWER_HANDLE_OUT, DRAWER_TRAVEL_PER_SIZE
 
 PANDA_XML = Path(__file__).parent / "assets" / "franka_emika_panda" / "panda.xml"
@@ -82,11 +84,14 @@ class BoxDims:
 
 @dataclass(frozen=True)
 class DrawerDims:
-    """A cubic cabinet (edge ``size``) with one drawer (a tray) sliding out towards the robot.
+    """A cubic cabinet (edge ``size``) with one drawer (a tray) sliding out of its front.
 
-    Frames: the cabinet's origin is the centre of its base on the table; the tray's frame
-    coincides with it when the drawer is closed and slides by ``q`` in [0, travel] along -x.
-    The tray's floor is `DRAWER_FLOOR` above the table, as the world model says.
+    Frames: the cabinet's origin is the centre of its base on the table, its front face at
+    -x of its own frame (the world's -x for a drawer that opens towards the robot; the
+    cabinet is turned by 180° about z for one that opens away from it); the tray's frame
+    coincides with it when the drawer is closed and slides by ``q`` in [0, travel] along its
+    -x. The tray's floor is `DRAWER_FLOOR` above the table, as the world model says.
+    Coordinates below are in those frames.
     """
 
     size: float
@@ -182,6 +187,7 @@ class Item:
     handle_geom: int = -1  # drawers: the handle knob
     geoms: frozenset[int] = frozenset()  # every collision geom of the object
     qpos: int = -1  # address of the object's joint in qpos
+    direction: int = -1  # drawers: the way along the world's x their tray slides out
 
 
 @dataclass
@@ -333,7 +339,8 @@ def _add_box(spec: mujoco.MjSpec, item: Item, index: int) -> None:
 def _add_drawer(spec: mujoco.MjSpec, item: Item, xy) -> None:
     d: DrawerDims = item.dims
     s, t, n = d.size, WALL, item.name
-    cab = spec.worldbody.add_body(name=f"{n}/cabinet", pos=[xy[0], xy[1], 0.0])
+    turned = [1.0, 0.0, 0.0, 0.0] if item.direction < 0 else [0.0, 0.0, 0.0, 1.0]
+    cab = spec.worldbody.add_body(name=f"{n}/cabinet", pos=[xy[0], xy[1], 0.0], quat=turned)
     _box(cab, f"{n}/cab_bottom", [0, 0, t / 2], [s / 2, s / 2, t / 2], WOOD)
     _box(cab, f"{n}/cab_top", [0, 0, s - t / 2], [s / 2, s / 2, t / 2], WOOD)
     for side in (-1, 1):
@@ -402,6 +409,7 @@ def build(objects: list[dict], grid_points=()) -> Built:
         elif item.type == "box":
             _add_box(spec, item, counts["box"])
         else:
+            item.direction = drawer_direction(obj["position"][0])
             _add_drawer(spec, item, obj["position"][:2])
         counts[item.type] += 1
         _add_weld(spec, item.name)

@@ -39,17 +39,21 @@ def drawer_center(sim: Sim, item: Item) -> np.ndarray:
     return sim.data.xpos[item.cabinet] + np.array([0.0, 0.0, item.dims.size / 2])
 
 
+def tray_point(sim: Sim, item: Item, local) -> np.ndarray:
+    """Returns a point given in a drawer's tray frame (`build.DrawerDims`) in the world frame."""
+    return sim.data.xpos[item.body] + sim.data.xmat[item.body].reshape(3, 3) @ np.asarray(local)
+
+
 def inner_box(sim: Sim, item: Item) -> tuple[np.ndarray, np.ndarray]:
     """Returns a drawer's inner box (lo, hi corners, world frame) at its current opening.
 
     The box rises to just under the cabinet's top, so a stack inside still counts.
     """
     d: DrawerDims = item.dims
-    origin = sim.data.xpos[item.body]  # the drawer frame is axis-aligned with the world
     x0, x1 = d.inner_x
-    lo = origin + np.array([x0, -d.inner_half_y, d.floor_top - 0.005])
-    hi = origin + np.array([x1, d.inner_half_y, d.size - 0.01])
-    return lo, hi
+    a = tray_point(sim, item, [x0, -d.inner_half_y, d.floor_top - 0.005])
+    b = tray_point(sim, item, [x1, d.inner_half_y, d.size - 0.01])
+    return np.minimum(a, b), np.maximum(a, b)
 
 
 def inside_of(sim: Sim, name: str) -> str | None:
@@ -97,10 +101,13 @@ def footprints(sim: Sim, item: Item) -> list[tuple[tuple[float, float, float, fl
     d: DrawerDims = item.dims
     (x, y), half = footprint(sim, item.name)
     out = [((x - half, x + half, y - half, y + half), top_z(sim, item.name))]
-    tray_front = float(sim.data.xpos[item.body][0] + d.tray_x[0])
-    if tray_front < x - half - 0.005:
-        out.append(((tray_front - 0.03, x - half, y - d.tray_half_y, y + d.tray_half_y),
-                    d.size - 0.01))  # the front panel and the handle stick out
+    way = item.direction
+    cabinet_front = x + way * half
+    tray_front = float(tray_point(sim, item, [d.tray_x[0], 0.0, 0.0])[0])
+    if way * (tray_front - cabinet_front) > 0.005:
+        reach = tray_front + way * 0.03  # the front panel and the handle stick out
+        out.append(((min(cabinet_front, reach), max(cabinet_front, reach),
+                     y - d.tray_half_y, y + d.tray_half_y), d.size - 0.01))
     return out
 
 

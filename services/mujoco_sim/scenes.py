@@ -134,10 +134,10 @@ def _place_objects(sim: Sim, scene: Scene) -> None:
 def _tray_spot(sim: Sim, drawer: Item, y: float, half: float) -> tuple[float, float, float]:
     """Returns where an object stands in a drawer's tray at its current opening."""
     dims: DrawerDims = drawer.dims
-    origin = sim.data.xpos[drawer.body]
+    spot = observe.tray_point(sim, drawer, [dims.spot_x, 0.0, 0.0])
     room = max(0.0, dims.inner_half_y - half - 0.003)
-    dy = float(np.clip(y - origin[1], -room, room))
-    return origin[0] + dims.spot_x, origin[1] + dy, dims.floor_top + half + 0.0005
+    dy = float(np.clip(y - spot[1], -room, room))
+    return float(spot[0]), float(spot[1]) + dy, dims.floor_top + half + 0.0005
 
 
 def tray_spot(sim: Sim, drawer: str, half: float) -> np.ndarray:

@@ -28,6 +28,7 @@ import numpy as np
 
 from cbgo import world
 from cbgo.services.mujoco_sim import checks, motion, observe
+from cbgo.services.mujoco_sim.build import WALL
 from cbgo.services.mujoco_sim.engine import SPILL_DEG, Sim, Stopped
 from cbgo.services.mujoco_sim.ik import rot_axis, rot_z, top_down
 from cbgo.services.mujoco_sim.motion import MotionError
@@ -68,6 +69,8 @@ REST_TIMEOUT_S = 1.5  # s at most to wait for a released load to come to rest
 # report it 5 cm short of where it comes to lie
 FAILURE_REST_S = 3.0
 SLIDE_MARGIN = 0.002  # m between a pad and a load that slides down between the pads
+TRAY_SHIFT_STEP = 0.005  # m between the spots in a drawer's tray that put_into tries
+TRAY_WALL_MARGIN = 0.004  # m a load put into a tray keeps from the tray's front wall
 
 
 class ActionError(Exception):
@@ -237,38 +240,41 @@ class Robot:
         return hits
 
     def _best_pose(self, candidates, pose_of, fingers: float, approach: float,
-                   lifts=(0.0,), what: str | None = None):
+                   lifts=(0.0,), what: str | None = None, shifts=((0.0, 0.0, 0.0),)):
         """Returns (rot, position) of the first collision-free candidate, else the least bad.
 
-        Lifts are tried lowest first, and within one lift the yaws in order. With `what` (the
-        object to grasp), a grasp with no collision-free candidate is refused instead: the
-        hand would press on a neighbour on the way down and stall before the fingers close
-        (a cup in the corner between two drawer cabinets, measured: stuck 14-18 mm above it).
+        Shifts are tried in order, within one shift the lifts lowest first, and within one
+        lift the yaws in order. With `what` (the object to grasp), a grasp with no
+        collision-free candidate is refused instead: the hand would press on a neighbour on
+        the way down and stall before the fingers close (a cup in the corner between two
+        drawer cabinets, measured: stuck 14-18 mm above it).
 
         Args:
             candidates: hand yaws to try.
-            pose_of: rot -> TCP position at that hand orientation (before the lift).
+            pose_of: rot -> TCP position at that hand orientation (before the shift and lift).
             fingers: the finger opening during the approach.
             approach: how far above the pose the vertical approach is checked, m.
             lifts: heights above the pose to try, m (a load may drop that far).
             what: the object a grasp is for; refuse rather than take the least bad pose.
+            shifts: horizontal displacements of the pose to try, m (a load may go there too).
 
         Raises:
             Refused: no candidate is reachable.
         """
         best, best_depth = None, math.inf
-        for lift in lifts:
-            for yaw in candidates:
-                rot = motion.fold_to_wrist(self.sim, pose_of(top_down(yaw)), top_down(yaw))
-                pos = pose_of(rot) + [0.0, 0.0, lift]
-                hits = self._pose_hits(pos, rot, fingers, approach)
-                if hits is None:
-                    continue
-                depth = sum(h.depth for h in hits) + lift
-                if not hits:
-                    return rot, pos
-                if depth < best_depth:
-                    best, best_depth = (rot, pos), depth
+        for shift in shifts:
+            for lift in lifts:
+                for yaw in candidates:
+                    rot = motion.fold_to_wrist(self.sim, pose_of(top_down(yaw)), top_down(yaw))
+                    pos = pose_of(rot) + np.asarray(shift) + [0.0, 0.0, lift]
+                    hits = self._pose_hits(pos, rot, fingers, approach)
+                    if hits is None:
+                        continue
+                    depth = sum(h.depth for h in hits) + lift
+                    if not hits:
+                        return rot, pos
+                    if depth < best_depth:
+                        best, best_depth = (rot, pos), depth
         if best is None:
             raise Refused("no reachable top-down pose for the gripper there")
         if what is not None:
@@ -305,10 +311,12 @@ class Robot:
         motion.line(sim, [pos[0], pos[1], lift_to], rot)
         return checks.grasped(sim, name, center[2])
 
-    def _release_at(self, goal, surface: list[int]) -> None:
+    def _release_at(self, goal, surface: list[int], shifts=((0.0, 0.0, 0.0),)) -> None:
         """Puts the held object's centre at `goal` and lets go.
 
-        `surface` are the geoms it lands on, whose contacts do not count while planning.
+        `surface` are the geoms it lands on, whose contacts do not count while planning;
+        `shifts` are displacements of the goal that are as good, tried in order where the
+        hand does not fit at the goal itself.
         """
         sim = self.sim
         held = sim.holding
@@ -320,7 +328,7 @@ class Robot:
         yaw_now = math.atan2(r_tcp[1, 0], r_tcp[0, 0])
         rot, pos = self._best_pose(yaw_candidates(item, sim, yaw_now),
                                    lambda r: np.asarray(goal) - r @ obj_in_tcp, release,
-                                   approach=0.1, lifts=RELEASE_LIFTS)
+                                   approach=0.1, lifts=RELEASE_LIFTS, shifts=shifts)
         motion.travel(sim, pos, rot, travel_height(sim, item), fold=False)
         base_z = (np.asarray(goal) - rot @ obj_in_tcp)[2]
         pos = self._lower_until_contact(item, surface, pos, rot, pos[2] - base_z + 0.008)
@@ -413,8 +421,22 @@ class Robot:
         sim = self.sim
         held = sim.holding
         goal = tray_spot(sim, drawer, sim.items[held].dims.half_height) + [0, 0, 0.003]
-        self._release_at(goal, [sim.items[drawer].bottom_geom])
+        self._release_at(goal, [sim.items[drawer].bottom_geom],
+                         self._tray_shifts(sim.items[drawer], sim.items[held]))
         return checks.in_drawer(sim, held, drawer)
+
+    @staticmethod
+    def _tray_shifts(drawer, load) -> list[tuple[float, float, float]]:
+        """Returns where else in the tray a load may go: towards the tray's front, in steps.
+
+        The spot in the middle of the tray's open part leaves the hand a few millimetres from
+        the cabinet's front when it reaches low (a 0.03 m cup, the hand's underside under the
+        cabinet's top, measured: stuck 4 mm short); further out, the load still stands on the
+        tray's floor, clear of its front wall.
+        """
+        room = (drawer.dims.travel - WALL) / 2 - grasp_half_width(load) - TRAY_WALL_MARGIN
+        steps = np.arange(0.0, max(room, 0.0) + 1e-9, TRAY_SHIFT_STEP)
+        return [(drawer.direction * float(d), 0.0, 0.0) for d in steps]
 
     # ------------------------------------------------------------------ moves
 
@@ -451,9 +473,9 @@ class Robot:
         nothing but the knob; else the knob's centre (the firmest grasp).
         """
         item = self.sim.items[drawer]
-        knob = self.sim.data.xpos[item.body] + np.array(item.dims.handle)
+        knob = observe.tray_point(self.sim, item, item.dims.handle)
         q = float(self.sim.data.qpos[item.qpos])
-        shift = -(item.dims.travel - q) if opening else q
+        shift = item.direction * (item.dims.travel - q) if opening else -item.direction * q
         self.checker.sync(ignore_geoms=[item.handle_geom])
         for lift in HANDLE_GRASP_LIFTS:
             pos = knob + [0.0, 0.0, lift]
@@ -465,7 +487,7 @@ class Robot:
         sim = self.sim
         item = sim.items[drawer]
         pre = finger_for_width(HANDLE_HALF_WIDTH + OPEN_MARGIN)
-        knob = sim.data.xpos[item.body] + np.array(item.dims.handle)
+        knob = observe.tray_point(sim, item, item.dims.handle)
         rot = motion.fold_to_wrist(sim, knob, top_down(0.0))
         handle = self._handle_pose(drawer, opening, rot, pre)
         motion.gripper(sim, pre, 0.2)
@@ -478,7 +500,8 @@ class Robot:
             raise ActionError(f"could not grasp the handle of {drawer}")
         sim.attach(drawer)
         q = float(sim.data.qpos[item.qpos])
-        shift = -(item.dims.travel - q - 0.002) if opening else q + 0.003
+        way = item.direction  # the tray slides out along the world's x this way
+        shift = way * (item.dims.travel - q - 0.002) if opening else -way * (q + 0.003)
         _, rot_now = sim.tcp()
         try:
             motion.line(sim, handle + [shift, 0.0, 0.0], rot_now, speed=motion.SLOW, tol=0.005,

@@ -49,7 +49,7 @@ from typing import Any
 
 from cbgo.world import Failure, Scene
 from cbgo.world import failures as world_failures
-from cbgo.world.scene import DRAWER_TRAY_OFFSET, GRASPABLE
+from cbgo.world.scene import DRAWER_TRAY_OFFSET, GRASPABLE, drawer_direction
 
 DRAWER_ACTIONS = ("open", "close")
 FETCH_ACTIONS = ("put_into", "put_on", "pour")
@@ -123,7 +123,7 @@ def arm_inside(scene: Scene, drawer: str) -> bool:
     if not d.open:
         return False
     x, y, z = scene.resting_position(drawer)
-    x -= DRAWER_TRAY_OFFSET
+    x += drawer_direction(x) * DRAWER_TRAY_OFFSET
     half = d.size / 2
     tx, ty, tz = scene.robot.tcp
     return abs(tx - x) <= half and abs(ty - y) <= half and tz < z + half

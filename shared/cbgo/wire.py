@@ -298,7 +298,7 @@ WORKSPACE = Obj({
     "table_area": Obj({"x": RANGE, "y": RANGE}),
     "sizes": MapOf(SIZE_RANGE), "drawer_tray_offset": Num(lo=0.0),
     "drawer_capacity": Int(lo=0), "max_stack": Int(lo=1),
-}, optional={"min_reach": Num(lo=0.0),
+}, optional={"min_reach": Num(lo=0.0), "drawer_opens_away_below_x": Num(),
              "drawer_handle": Obj({"travel_per_size": Num(lo=0.0), "out": Num(lo=0.0)})})
 SIM_INFO_QUERY = Obj({"v": V})
 SIM_INFO_REPLY = Obj({"v": V, "ok": Bool(), "error": Nullable(Str(nonempty=False)),

@@ -11,7 +11,7 @@ from cbgo.errors import ConfigError
 from cbgo.services.dry_robot.main import NO_RENDERER, DryRobot, DryRobotSettings
 from cbgo.services.dry_robot.robot import SymbolicRobot
 from cbgo.testing import FakeBus
-from cbgo.world import Scene, random_scene, workspace_info
+from cbgo.world import Scene, paper_scene, random_scene, workspace_info
 
 PAPER_SCENE = {  # the paper's example: cup1 in the gripper, drawer1 closed
     "objects": [
@@ -204,19 +204,23 @@ def test_reset_with_an_object_off_the_table_area_is_refused_with_where_it_is_and
     assert act(bus, "place")["ok"]  # the world stayed the paper scene: cup1 is held
 
 
-def test_reset_with_a_drawer_whose_open_tray_leaves_the_reach_is_refused(bus):
-    near = {"objects": [dict(PAPER_SCENE["objects"][1], position=[0.32, 0.06, 0.055])]}
+def test_reset_takes_a_drawer_in_the_nearest_row_and_the_papers_smallest_cup(bus):
+    near = {"objects": [dict(PAPER_SCENE["objects"][0], size=0.03),
+                        dict(PAPER_SCENE["objects"][1], position=[0.32, -0.06, 0.055])],
+            "robot": PAPER_SCENE["robot"]}
     ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "scene": near})
-    assert ok and reply["ok"] is False
-    assert "drawer1 at (0.32, 0.06) would open its tray to x 0.24" in reply["error"]
-    # one column further it opens its handle to x 0.277: out of reach on a middle row, in
-    # reach on an outer one (0.29 m from the base at the least)
-    near["objects"][0]["position"] = [0.44, 0.06, 0.055]
-    ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "scene": near})
-    assert ok and reply["ok"] is False
-    assert "drawer1 at (0.440, 0.06) would open its handle to (0.277, 0.06)" in reply["error"]
-    near["objects"][0]["position"] = [0.44, 0.18, 0.055]
-    ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "scene": near})
+    assert ok and reply["ok"], reply
+    assert act(bus, "open", "drawer1")["ok"]
+    reply = act(bus, "put_into", "drawer1")
+    assert reply["ok"], reply
+    cup = objects(reply["scene"])["cup1"]
+    # it opens away from the robot (+x): its tray, and the cup on it, come out behind it
+    assert cup["inside"] == "drawer1" and cup["position"][0] == pytest.approx(0.32 + 0.08)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_reset_takes_every_scene_of_the_papers_distribution(bus, seed):
+    ok, reply = bus.query(keys.SIM_RESET, {"v": 1, "scene": paper_scene(seed).to_dict()})
     assert ok and reply["ok"], reply
 
 

@@ -50,6 +50,7 @@ export class SceneView {
   setWorkspace(ws) {
     release(this.static);
     this.changed = true;
+    this.opensAwayBelowX = ws.drawer_opens_away_below_x ?? null;
     const area = ws.table_area;
     const pad = 0.08;
     const table = new THREE.Mesh(
@@ -77,7 +78,9 @@ export class SceneView {
     this.objectsKey = key;
     this.changed = true;
     release(this.objects);
-    for (const obj of scene?.objects || []) this.objects.add(objectMesh(obj, obj.name === target));
+    for (const obj of scene?.objects || []) {
+      this.objects.add(objectMesh(obj, obj.name === target, this.opensAwayBelowX));
+    }
   }
 
   // Everything that moves every frame.
@@ -191,7 +194,9 @@ function overlap(a, b) {
     a.top < b.top + b.height && b.top < a.top + a.height;
 }
 
-function objectMesh(obj, isTarget) {
+// opensAwayBelowX: a drawer standing nearer the robot than this opens away from it (+x), the
+// others towards it (-x); null when the workspace does not say (every drawer opens towards it).
+function objectMesh(obj, isTarget, opensAwayBelowX = null) {
   const group = new THREE.Group();
   const s = obj.size, [x, y, z] = obj.position;
   const colour = isTarget ? TARGET : OBJECT_COLOURS[obj.type] ?? 0xffffff;
@@ -214,10 +219,11 @@ function objectMesh(obj, isTarget) {
   mesh.position.set(x, y, z);
   group.add(mesh);
   if (obj.type === "drawer" && (obj.open || (obj.opening ?? 0) > 0.01)) {
-    const out = (obj.opening ?? 1) * 0.818 * s;  // the tray slides towards the robot (-x)
+    const out = (obj.opening ?? 1) * 0.818 * s;  // how far the tray has slid out
+    const way = opensAwayBelowX !== null && x < opensAwayBelowX ? 1 : -1;
     const tray = new THREE.Mesh(new THREE.BoxGeometry(out, s * 0.9, s * 0.3),
       new THREE.MeshStandardMaterial({ color: 0xadbac7 }));
-    tray.position.set(x - s / 2 - out / 2, y, z - s * 0.2);
+    tray.position.set(x + way * (s / 2 + out / 2), y, z - s * 0.2);
     group.add(tray);
   }
   if (isTarget) {

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from cbgo import transform
+from cbgo.world import drawer_direction
 
 BASE_FRAME = "base"
 LEAP_FRAME = "leap"
@@ -128,9 +129,10 @@ def _object_shape(obj: dict, rgba) -> dict:
                                "bottom_scale": 1.0, "top_scale": 1.0, "color": colour(rgba)}]}
     cubes = [{"pose": pose(obj["position"]), "size": vec((size,) * 3), "color": colour(rgba)}]
     opening = obj.get("opening", 1.0 if obj.get("open") else 0.0)
-    if obj["type"] == "drawer" and opening > 0:  # the tray, slid out towards the robot (-x)
+    if obj["type"] == "drawer" and opening > 0:  # the tray, slid out the way it opens
         x, y, z = obj["position"]
-        tray = (x - size / 2 - opening * DRAWER_TRAVEL * size / 2, y, z - size / 4)
+        way = drawer_direction(x)
+        tray = (x + way * (size / 2 + opening * DRAWER_TRAVEL * size / 2), y, z - size / 4)
         cubes.append({"pose": pose(tray), "size": vec((opening * DRAWER_TRAVEL * size,
                                                        size * 0.9, size / 2)),
                       "color": colour(rgba)})

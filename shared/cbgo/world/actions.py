@@ -15,8 +15,8 @@ move_*      the TCP stays inside the grid (``params.distance`` m, default one ce
             up/down along z, left/right as the person sees it (left = −y); the gripper
             fits at the goal (`gripper_room`)
 place       a held object and a free table column (the TCP's, else the nearest;
-            ``params.position`` asks for a given one); a drawer's front column is kept
-            free for its tray
+            ``params.position`` asks for a given one); the column a drawer opens into is
+            kept free for its tray
 pick_up     an empty gripper; a free cup or box
 put_on      a held object; a free box or drawer cabinet as target, not inside a drawer,
             the tower staying within `MAX_STACK`
@@ -32,9 +32,9 @@ side; or the held object, grasped `GRASP_DEPTH` under its top, its footprint) no
 (from `HAND_BOTTOM` above the TCP up; `HAND_HALF` m across and along the fingers' closing
 axis, world y: top-down at yaw 0) may overlap an object whose top is above its bottom (5 mm
 tolerance). Footprints are squares of edge ``size``; an open drawer's also covers its tray
-and handle in front of the cabinet (`DRAWER_TRAVEL_PER_SIZE` × size + 0.03 m, top 0.01 m under
-the cabinet's). A robot may refuse more (mujoco-sim also checks the way there and the hand's
-real yaw).
+and handle in front of the cabinet, on the side it opens to (`drawer_direction`;
+`DRAWER_TRAVEL_PER_SIZE` × size + 0.03 m, top 0.01 m under the cabinet's). A robot may refuse
+more (mujoco-sim also checks the way there and the hand's real yaw).
 
 Moves and place ignore the object (`OBJECT_AGNOSTIC`). Effects: moves shift the TCP by whole
 cells and carry the held object; pick_up takes the object to the gripper (the TCP goes to it);
@@ -51,7 +51,15 @@ from typing import Any
 
 from cbgo.wire import ACTIONS
 from cbgo.world.grid import DEFAULT_GRID, Column, Grid
-from cbgo.world.scene import DRAWER_CAPACITY, GRASPABLE, MAX_STACK, SUPPORTS, Scene, SceneObject
+from cbgo.world.scene import (
+    DRAWER_CAPACITY,
+    GRASPABLE,
+    MAX_STACK,
+    SUPPORTS,
+    Scene,
+    SceneObject,
+    drawer_direction,
+)
 from cbgo.world.workspace import DRAWER_TRAVEL_PER_SIZE
 
 MOVES: dict[str, tuple[int, int, int]] = {
@@ -219,9 +227,11 @@ def _footprints(obj: SceneObject) -> list[tuple[tuple[float, float, float, float
     half = obj.size / 2
     out = [((x - half, x + half, y - half, y + half), z + half)]
     if obj.type == "drawer" and obj.open:
-        front = x - half
-        out.append(((front - DRAWER_TRAVEL_PER_SIZE * obj.size - TRAY_OUT_EXTRA, front,
-                     y - half, y + half), obj.size - 0.01))
+        way = drawer_direction(x)
+        front = x + way * half
+        out_to = front + way * (DRAWER_TRAVEL_PER_SIZE * obj.size + TRAY_OUT_EXTRA)
+        out.append(((min(front, out_to), max(front, out_to), y - half, y + half),
+                    obj.size - 0.01))
     return out
 
 
@@ -229,15 +239,16 @@ def reserved_columns(scene: Scene, grid: Grid = DEFAULT_GRID) -> dict[Column, st
     """Returns the table columns taken, each with the object that takes it.
 
     A column is taken by an object standing on the table there, and a drawer also takes the
-    column in front of it (towards the robot) for its tray.
+    column it opens into (`drawer_direction`) for its tray.
     """
     taken: dict[Column, str] = {}
     for obj in scene.objects:
         if obj.on is None and obj.inside is None and not scene.is_held(obj.name):
             i, j = grid.column_of(obj.position)
             taken[(i, j)] = obj.name
-            if obj.type == "drawer" and i > 0:
-                taken.setdefault((i - 1, j), obj.name)
+            tray = (i + drawer_direction(obj.position[0]), j)
+            if obj.type == "drawer" and grid.contains((*tray, 0)):
+                taken.setdefault(tray, obj.name)
     return taken
 
 

@@ -13,8 +13,13 @@ service, the planner and the dry robot share. Its rules:
 Positions are centres of an object's bounding cube of edge ``size`` (metres, robot base frame).
 Table objects keep the position they are given; the positions of stacked, contained and held
 objects follow from their support (`Scene.settle`): on top of the support, on the drawer's
-floor (pulled out towards the robot by `DRAWER_TRAY_OFFSET` while the drawer is open), or at the
-TCP. Drawers open towards the robot (−x).
+floor (pulled out by `DRAWER_TRAY_OFFSET` while the drawer is open), or at the TCP.
+
+Drawers open along x, towards the middle of the table (`drawer_direction`): one standing at
+x ≥ `DRAWER_OPENS_AWAY_BELOW_X` opens towards the robot (−x), one nearer the robot opens away
+from it (+x). Opened towards the robot, a drawer that near would bring its handle closer to the
+robot's base than the arm reaches top-down (`cbgo.world.workspace.MIN_REACH`); opened away, it
+stays within reach wherever it stands on the table.
 
 `Scene.state_bit` is the binary object state the paper's decision tables condition on: a cup is
 full, a drawer is open, a box is blocked (something stands on it, or it is inside a drawer).
@@ -33,9 +38,18 @@ GRASPABLE = ("cup", "box")
 SUPPORTS = ("box", "drawer")  # what another object can be put on
 DEFAULT_SIZES = {"cup": 0.06, "drawer": 0.11, "box": 0.05}
 DRAWER_CAPACITY = 1
-DRAWER_TRAY_OFFSET = 0.08  # m the tray slides towards the robot (−x) when the drawer is open
+DRAWER_TRAY_OFFSET = 0.08  # m the tray slides out (`drawer_direction`) when the drawer is open
+# m: a drawer whose centre lies nearer the robot than this opens away from it (+x), the others
+# towards it (−x); the middle of the grid's columns (0.32 … 0.68), so that the opened handle of
+# every drawer on the table lies between 0.337 and 0.69 m from the robot's base axis
+DRAWER_OPENS_AWAY_BELOW_X = 0.50
 DRAWER_FLOOR = 0.01  # m between the cabinet's bottom and its tray's floor
 MAX_STACK = 4  # objects in one tower, the bottom one included
+
+
+def drawer_direction(x: float) -> int:
+    """Returns the way along x a drawer standing at x opens: −1 towards the robot, +1 away."""
+    return 1 if float(x) < DRAWER_OPENS_AWAY_BELOW_X else -1
 
 
 @dataclass
@@ -170,7 +184,7 @@ class Scene:
         if obj.inside is not None and self.has(obj.inside):
             drawer = self.get(obj.inside)
             x, y, z = self.resting_position(drawer.name)
-            x -= DRAWER_TRAY_OFFSET if drawer.open else 0.0
+            x += drawer_direction(x) * DRAWER_TRAY_OFFSET if drawer.open else 0.0
             return x, y, z - drawer.size / 2 + DRAWER_FLOOR + obj.size / 2
         x, y, _ = obj.position
         return float(x), float(y), obj.size / 2

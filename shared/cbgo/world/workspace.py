@@ -10,19 +10,23 @@ The rules, in the robot base frame (metres), for a `Grid` (`cbgo.world.grid`):
   the grid's columns extended by `REACH_MARGIN` (x 0.30 … 0.70, y −0.20 … 0.20 for the default
   grid); stacked, contained and held objects follow their support;
 - **what the arm reaches**: top-down, every point of the table area from the table up to the
-  grid's top level (a unit test of mujoco-sim solves the Panda's IK at its corners); so a
-  drawer's opened tray, `DRAWER_TRAY_OFFSET` towards the robot, must stay in the table area
-  too (a drawer in the column nearest the robot would open out of reach); and the handle of
-  the opened drawer, which the arm grasps to close it, must lie at least `MIN_REACH` from the
-  robot's base axis (top-down, the Panda does not fold nearer: mujoco-sim's IK fails within
-  0.285 m for TCP heights 0.05 … 0.22 m). The tray slides out `DRAWER_TRAVEL_PER_SIZE` × size
-  (0.09 m for the default 0.11 m cabinet) and its knob is grasped `DRAWER_HANDLE_OUT` in front
-  of the tray: the handle of an open drawer at (x, y) is at x − 1.318 × size − 0.018, so
-  a 0.11 m drawer in the column at x 0.44 opens out of reach on the middle rows (y ±0.06)
-  and in reach on the outer ones (y ±0.18);
-- **sizes** (the edge of an object's bounding cube) within `SIZE_RANGES`: the gripper opens
-  80 mm and needs 12 mm between each pad and a cup or box; a drawer cabinet fills at most one
-  cell (0.12 m) and must hold a cup;
+  grid's top level (a unit test of mujoco-sim solves the Panda's IK at its corners), but
+  nothing nearer the robot's base axis than `MIN_REACH` (top-down, the Panda does not fold
+  nearer: mujoco-sim's IK fails within 0.285 m for TCP heights 0.05 … 0.22 m). A drawer opens
+  along x towards the middle of the table (`cbgo.world.scene.drawer_direction`): towards the
+  robot from x ≥ `DRAWER_OPENS_AWAY_BELOW_X` (0.50 m), away from it nearer. So its opened
+  tray, `DRAWER_TRAY_OFFSET` out, stays in the table area, and the handle of the opened drawer,
+  which the arm grasps to close it, stays at least `MIN_REACH` from the base axis, wherever
+  the drawer stands on the table: a drawer may stand in every column. The tray slides out
+  `DRAWER_TRAVEL_PER_SIZE` × size (0.09 m for the default 0.11 m cabinet) and its knob is
+  grasped `DRAWER_HANDLE_OUT` in front of the tray: the handle of an open drawer at (x, y) is
+  at x ± (size/2 + 0.818 × size + 0.018) (`open_handle_x`), between 0.337 and 0.693 m from
+  the base axis for a 0.11 m cabinet anywhere on the table (both checked again here, for other
+  grids);
+- **sizes** (the edge of an object's bounding cube) within `SIZE_RANGES`: cups from 0.03 m
+  (the paper's 0.03 … 0.07 m) to what the gripper takes (it opens 80 mm and needs 12 mm
+  between each pad and a cup or box); a drawer cabinet fills at most one cell (0.12 m) and
+  must hold a cup;
 - **room**: the footprints (squares of edge ``size``) of table objects do not overlap, and
   nothing stands where a drawer's tray slides out.
 """
@@ -38,14 +42,19 @@ from cbgo.world.grid import DEFAULT_GRID, Grid
 from cbgo.world.scene import (
     DEFAULT_SIZES,
     DRAWER_CAPACITY,
+    DRAWER_OPENS_AWAY_BELOW_X,
     DRAWER_TRAY_OFFSET,
     MAX_STACK,
     Scene,
     SceneObject,
+    drawer_direction,
 )
 
 REACH_MARGIN = 0.02  # m beyond the outer columns that table positions may lie (the jitter)
-SIZE_RANGES = {"cup": (0.04, 0.07), "box": (0.03, 0.055), "drawer": (0.09, 0.11)}
+# m, per type; cups as the paper draws them (0.03 … 0.07 m): mujoco-sim grasps, pours from and
+# into, stacks, places and puts into drawers the smallest (tests/unit/mujoco_sim/
+# test_sim_paper_scenes.py; `cbgo bench sim --generator paper`: 99.6 % of feasible actions done)
+SIZE_RANGES = {"cup": (0.03, 0.07), "box": (0.03, 0.055), "drawer": (0.09, 0.11)}
 # an opened drawer's tray slides out this many times the cabinet's size, and its handle is
 # grasped DRAWER_HANDLE_OUT in front of the tray's front (mujoco-sim builds its cabinets so)
 DRAWER_TRAVEL_PER_SIZE = 0.818
@@ -92,6 +101,7 @@ def workspace_info(grid: Grid = DEFAULT_GRID) -> dict[str, Any]:
         "sizes": {kind: {"min": lo, "max": hi, "default": DEFAULT_SIZES[kind]}
                   for kind, (lo, hi) in SIZE_RANGES.items()},
         "drawer_tray_offset": DRAWER_TRAY_OFFSET,
+        "drawer_opens_away_below_x": DRAWER_OPENS_AWAY_BELOW_X,
         "min_reach": MIN_REACH,
         "drawer_handle": {"travel_per_size": DRAWER_TRAVEL_PER_SIZE,
                           "out": DRAWER_HANDLE_OUT},
@@ -174,23 +184,32 @@ def _position_problems(obj: SceneObject, area: Area) -> list[str]:
         return [f"{obj.name} at ({x:.2f}, {y:.2f}) is outside the workspace: objects on the "
                 f"table stand within {area.describe()} (the grid's columns ± "
                 f"{REACH_MARGIN:.2f} m; see cbgo/sim/info)"]
-    if obj.type == "drawer" and not area.contains(x - DRAWER_TRAY_OFFSET, y):
-        return [f"{obj.name} at ({x:.2f}, {y:.2f}) would open its tray to x "
-                f"{x - DRAWER_TRAY_OFFSET:.2f}, out of the arm's reach ({area.describe()}): "
-                f"a drawer stands at x >= {area.x[0] + DRAWER_TRAY_OFFSET:.2f}"]
+    if obj.type != "drawer":
+        return []
+    tray_x = x + drawer_direction(x) * DRAWER_TRAY_OFFSET
+    if not area.contains(tray_x, y):
+        return [f"{obj.name} at ({x:.2f}, {y:.2f}) would open its tray {_way(obj)} to x "
+                f"{tray_x:.2f}, out of the arm's reach ({area.describe()})"]
     handle = open_handle_x(obj)
     reach = math.floor(math.hypot(handle, y) * 1000) / 1000  # never shown as MIN_REACH itself
-    if obj.type == "drawer" and math.hypot(handle, y) < MIN_REACH:
+    if math.hypot(handle, y) < MIN_REACH:
         return [f"{obj.name} at ({x:.3f}, {y:.2f}) would open its handle to ({handle:.3f}, "
                 f"{y:.2f}), {reach:.3f} m from the robot's base axis: the arm reaches "
                 f"top-down no nearer than {MIN_REACH:.2f} m (see cbgo/sim/info)"]
     return []
 
 
+def _way(drawer: SceneObject) -> str:
+    """Returns which way a drawer opens, in words."""
+    return ("towards the robot" if drawer_direction(drawer.position[0]) < 0
+            else "away from the robot")
+
+
 def open_handle_x(drawer: SceneObject) -> float:
     """Returns the x of a drawer's handle (where the arm grasps it) when the drawer is open."""
-    return (float(drawer.position[0]) - drawer.size / 2
-            - DRAWER_TRAVEL_PER_SIZE * drawer.size - DRAWER_HANDLE_OUT)
+    x = float(drawer.position[0])
+    out = drawer.size / 2 + DRAWER_TRAVEL_PER_SIZE * drawer.size + DRAWER_HANDLE_OUT
+    return x + drawer_direction(x) * out
 
 
 def footprint(obj: SceneObject) -> tuple[float, float, float, float]:
@@ -201,8 +220,10 @@ def footprint(obj: SceneObject) -> tuple[float, float, float, float]:
 
 def tray_sweep(drawer: SceneObject) -> tuple[float, float, float, float]:
     """Returns where a drawer's tray comes out when it opens (x0, x1, y0, y1)."""
-    x0, _, y0, y1 = footprint(drawer)
-    return x0 - DRAWER_TRAY_OFFSET, x0, y0, y1
+    x0, x1, y0, y1 = footprint(drawer)
+    if drawer_direction(drawer.position[0]) < 0:
+        return x0 - DRAWER_TRAY_OFFSET, x0, y0, y1
+    return x1, x1 + DRAWER_TRAY_OFFSET, y0, y1
 
 
 def _overlap(a: tuple[float, ...], b: tuple[float, ...]) -> bool:
@@ -222,7 +243,11 @@ def _overlaps(table: list[SceneObject]) -> list[str]:
         for b in table:
             if b is not a and _overlap(tray_sweep(a), footprint(b)):
                 out.append(f"{b.name} at {_xy(b)} stands where the tray of {a.name} at "
-                           f"{_xy(a)} slides out ({DRAWER_TRAY_OFFSET:.2f} m towards the robot)")
+                           f"{_xy(a)} slides out ({DRAWER_TRAY_OFFSET:.2f} m {_way(a)})")
+        for b in table[i + 1:]:
+            if b.type == "drawer" and _overlap(tray_sweep(a), tray_sweep(b)):
+                out.append(f"the trays of {a.name} at {_xy(a)} and {b.name} at {_xy(b)} "
+                           "slide out into the same place")
     return out
 
 

@@ -20,9 +20,8 @@ def test_the_independent_generator_stays_inside_the_workspace_and_covers_it():
     assert len(refused) <= 3, refused  # footprints never overlap by construction
     covers = [bench.coverage(s) for s in drawn]
     assert len({c for cov in covers for c in cov["columns"]}) == 16
-    # drawers anywhere their opened tray stays in reach: every column but the nearest row
-    assert {c for cov in covers for c in cov["drawer_columns"]} == {
-        (i, j) for i in range(1, 4) for j in range(4)}
+    # drawers anywhere (the near ones open away from the robot)
+    assert {c for cov in covers for c in cov["drawer_columns"]} == set(world.DEFAULT_GRID.columns())
     assert {cov["level"] for cov in covers} == {0, 1, 2, 3}
     assert max(cov["tower"] for cov in covers) == world.workspace_info()["max_stack"]
     assert sum(cov["in_open"] for cov in covers) > 10

@@ -13,7 +13,9 @@ from cbgo.world import (
     check,
     failures,
     feasible,
+    gripper_room,
 )
+from cbgo.world.actions import reserved_columns
 from cbgo.world.scene import DRAWER_TRAY_OFFSET
 
 
@@ -126,6 +128,20 @@ def test_place_avoids_taken_columns_and_the_drawer_tray():
     assert codes("place", None, scene, {"position": [0.44, 0.06, 0.0]}) == ["place_taken"]
     wanted = apply("place", None, {"position": [0.32, 0.18, 0.0]}, scene)
     assert DEFAULT_GRID.column_of(wanted.get("cup1").position) == (0, 3)
+
+
+def test_a_drawer_near_the_robot_opens_away_from_it_its_tray_column_and_room_follow():
+    scene = world(obj("drawer1", "drawer", (0, 1), open=True), obj("cup1", "cup", (3, 3)),
+                  holding="cup1", tcp_cell=(0, 1, 3))
+    assert reserved_columns(scene)[(1, 1)] == "drawer1"  # behind it, away from the robot
+    after = apply("put_into", "drawer1", {}, scene)
+    drawer, cup = after.get("drawer1"), after.get("cup1")
+    assert cup.position[0] == pytest.approx(drawer.position[0] + DRAWER_TRAY_OFFSET)
+    assert apply("close", "drawer1", {}, after).get("cup1").position[0] == pytest.approx(
+        drawer.position[0])
+    # the open tray and handle stand behind the cabinet: no room for the fingers there
+    assert gripper_room(after, (0.50, -0.06, 0.06)) == "drawer1"
+    assert gripper_room(after, (0.20, -0.06, 0.06)) is None
 
 
 def test_place_needs_a_held_object_and_a_free_column():

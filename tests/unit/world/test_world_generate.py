@@ -1,10 +1,20 @@
 """The random scene generator: valid, seeded, distributed as the paper describes."""
 
+from collections import Counter
+
 import numpy as np
 
 from cbgo import wire
-from cbgo.world import DEFAULT_GRID, Scene, random_scene
-from cbgo.world.generate import TYPE_ORDER
+from cbgo.world import (
+    DEFAULT_GRID,
+    Scene,
+    drawer_direction,
+    paper_scene,
+    random_scene,
+    workspace_problems,
+)
+from cbgo.world.actions import reserved_columns
+from cbgo.world.generate import PAPER_CUP_SIZES, TYPE_ORDER
 from cbgo.world.scene import DRAWER_CAPACITY, MAX_STACK
 
 SEEDS = range(400)
@@ -72,3 +82,42 @@ def test_counts_states_and_holding_follow_the_papers_distribution():
     assert 0.45 < np.mean([c.full for c in cups]) < 0.55
     assert np.mean([any(o.on for o in s.objects) for s in scenes]) > 0.2
     assert np.mean([any(o.inside for o in s.objects) for s in scenes]) > 0.1
+
+
+# ------------------------------------------------------------------ the paper's distribution
+
+
+def test_paper_scenes_put_drawers_on_every_column_and_cups_of_every_paper_size():
+    scenes = [paper_scene(seed) for seed in range(1500)]
+    drawers = [o for s in scenes for o in s.objects if o.type == "drawer"]
+    columns = Counter(DEFAULT_GRID.column_of(d.position) for d in drawers)
+    assert set(columns) == set(DEFAULT_GRID.columns())
+    assert min(columns.values()) > 0.5 * len(drawers) / 16  # about uniform
+    cups = Counter(o.size for s in scenes for o in s.objects if o.type == "cup")
+    assert set(cups) == set(PAPER_CUP_SIZES) == {0.03, 0.04, 0.05, 0.06, 0.07}
+    assert min(cups.values()) > 0.15 * sum(cups.values())
+    assert {o.size for s in scenes for o in s.objects if o.type != "cup"} == {0.05, 0.11}
+
+
+def test_paper_scenes_are_valid_fit_the_workspace_and_keep_every_tray_free():
+    for seed in range(600):
+        scene = paper_scene(seed)
+        assert scene.problems() == [] and workspace_problems(scene) == [], seed
+        types = tuple(o.type for o in scene.objects)
+        assert 2 <= len(types) <= 7 and types == TYPE_ORDER[:len(types)]
+        taken = reserved_columns(scene)
+        table = [o for o in scene.objects
+                 if o.on is None and o.inside is None and not scene.is_held(o.name)]
+        assert len({DEFAULT_GRID.column_of(o.position) for o in table}) == len(table)
+        for drawer in (o for o in table if o.type == "drawer"):
+            i, j = DEFAULT_GRID.column_of(drawer.position)
+            tray = (i + drawer_direction(drawer.position[0]), j)
+            assert taken[tray] == drawer.name, seed  # nothing else stands in its way
+
+
+def test_paper_scenes_are_seeded_and_leave_the_intent_datasets_scenes_alone():
+    assert paper_scene(5) == paper_scene(5) and paper_scene(5) != paper_scene(6)
+    assert random_scene(5) != paper_scene(5)
+    assert all(DEFAULT_GRID.column_of(o.position)[0] == 3
+               for s in (random_scene(seed) for seed in range(200))
+               for o in s.objects if o.type == "drawer")

@@ -1,5 +1,7 @@
 """The workspace: its machine-readable description, and the scenes a robot refuses at reset."""
 
+import math
+
 import pytest
 from world_scenes import obj, world
 
@@ -8,12 +10,16 @@ from cbgo.examples import example
 from cbgo.world import (
     DEFAULT_GRID,
     Grid,
+    drawer_direction,
+    paper_scene,
     random_scene,
     reset_refusal,
     table_area,
     workspace_info,
     workspace_problems,
 )
+from cbgo.world.scene import DRAWER_OPENS_AWAY_BELOW_X, DRAWER_TRAY_OFFSET
+from cbgo.world.workspace import MIN_REACH, open_handle_x
 
 
 def _moved(scene, name, x, y):
@@ -42,6 +48,7 @@ def test_the_info_describes_the_grid_and_validates_as_a_sim_info_reply():
 @pytest.mark.parametrize("seed", range(300))
 def test_every_random_scene_of_the_world_model_fits_in_the_workspace(seed):
     assert workspace_problems(random_scene(seed)) == []
+    assert workspace_problems(paper_scene(seed)) == []
 
 
 def test_an_object_beyond_the_outer_columns_is_refused_with_where_it_is_and_the_area():
@@ -60,26 +67,40 @@ def test_positions_between_columns_and_within_the_margin_are_accepted():
     assert workspace_problems(_moved(scene, "cup1", 0.71, 0.0)) != []
 
 
-def test_a_drawer_in_the_column_nearest_the_robot_is_refused_its_tray_would_leave_the_reach():
-    scene = world(obj("drawer1", "drawer", (0, 1)))
-    problems = workspace_problems(scene)
-    assert problems == ["drawer1 at (0.32, -0.06) would open its tray to x 0.24, out of the "
-                        "arm's reach (x 0.30..0.70, y -0.20..0.20): a drawer stands at x >= "
-                        "0.38"]
-    assert workspace_problems(world(obj("drawer1", "drawer", (1, 0)))) == []
+@pytest.mark.parametrize("column", list(DEFAULT_GRID.columns()))
+@pytest.mark.parametrize("size", [0.09, 0.11])
+def test_a_drawer_fits_in_every_column_opening_towards_the_middle_of_the_table(column, size):
+    scene = world(obj("drawer1", "drawer", column, open=True))
+    drawer = scene.get("drawer1")
+    drawer.size = size
+    assert workspace_problems(scene) == []
+    way = drawer_direction(drawer.position[0])
+    assert way == (1 if column[0] < 2 else -1)  # away from the robot in the near half
+    handle = open_handle_x(drawer)
+    assert handle == pytest.approx(drawer.position[0] + way * (size / 2 + 0.818 * size + 0.018))
+    assert MIN_REACH <= math.hypot(handle, drawer.position[1]) <= 0.70
+    assert table_area().contains(drawer.position[0] + way * DRAWER_TRAY_OFFSET,
+                                 drawer.position[1])
 
 
-def test_a_drawer_whose_open_handle_comes_nearer_the_base_than_the_arm_reaches_is_refused():
-    # a 0.11 m cabinet at x 0.44 opens its handle to x 0.277: 0.283 m from the base on the
-    # middle rows, 0.331 m on the outer ones; a 0.09 m cabinet opens it to x 0.303
-    middle = world(obj("drawer1", "drawer", (1, 2)))
-    assert workspace_problems(middle) == [
-        "drawer1 at (0.440, 0.06) would open its handle to (0.277, 0.06), 0.283 m from the "
+def test_drawers_open_away_from_the_robot_below_the_split_and_towards_it_from_there_on():
+    split = workspace_info()["drawer_opens_away_below_x"]
+    assert split == DRAWER_OPENS_AWAY_BELOW_X == 0.50
+    assert drawer_direction(split - 0.001) == 1 and drawer_direction(split) == -1
+
+
+def test_a_drawer_whose_tray_or_handle_would_leave_the_reach_is_refused():
+    # grids other than the contract's: one column near the far edge, one at the robot's base
+    far = Grid(shape=(1, 1, 1), origin=(0.4, 0.0, 0.06), step=(0.1, 0.1, 0.1))
+    scene = _moved(world(obj("drawer1", "drawer")), "drawer1", 0.4, 0.0)
+    assert workspace_problems(scene, far) == [
+        "drawer1 at (0.40, 0.00) would open its tray away from the robot to x 0.48, out of "
+        "the arm's reach (x 0.38..0.42, y -0.02..0.02)"]
+    near = Grid(shape=(2, 1, 1), origin=(0.06, 0.0, 0.06), step=(0.12, 0.1, 0.1))
+    problems = workspace_problems(_moved(scene, "drawer1", 0.06, 0.0), near)
+    assert problems == [
+        "drawer1 at (0.060, 0.00) would open its handle to (0.223, 0.00), 0.222 m from the "
         "robot's base axis: the arm reaches top-down no nearer than 0.29 m (see cbgo/sim/info)"]
-    assert workspace_problems(world(obj("drawer1", "drawer", (1, 3)))) == []
-    small = world(obj("drawer1", "drawer", (1, 2)))
-    small.get("drawer1").size = 0.09
-    assert workspace_problems(small) == []
     assert workspace_info()["min_reach"] == 0.29
 
 
@@ -99,7 +120,9 @@ def test_sizes_outside_what_the_gripper_and_a_cell_take_are_refused():
     scene.get("cup1").size = 0.08
     problems = workspace_problems(scene)
     assert problems[0] == ("cup1 is a cup of size 0.080 m; the workspace takes cups of "
-                           "0.040..0.070 m (see cbgo/sim/info)")
+                           "0.030..0.070 m (see cbgo/sim/info)")
+    scene.get("cup1").size = 0.03  # the paper's smallest cup
+    assert len(workspace_problems(scene)) == 1
     assert problems[1].startswith("drawer1 is a drawer of size 0.300 m")
 
 
@@ -113,6 +136,15 @@ def test_overlapping_footprints_and_objects_in_a_trays_way_are_refused():
     assert workspace_problems(_moved(scene, "cup1", 0.58, 0.18)) == [
         "cup1 at (0.58, 0.18) stands where the tray of drawer1 at (0.68, 0.18) slides out "
         "(0.08 m towards the robot)"]
+
+
+def test_two_trays_sliding_out_into_the_same_column_are_refused():
+    scene = world(obj("drawer1", "drawer", (0, 2)), obj("drawer2", "drawer", (2, 2)))
+    assert workspace_problems(scene) == [
+        "the trays of drawer1 at (0.32, 0.06) and drawer2 at (0.56, 0.06) slide out into the "
+        "same place"]
+    _moved(scene, "drawer2", 0.68, 0.06)
+    assert workspace_problems(scene) == []
 
 
 def test_the_reset_refusal_names_broken_rules_first_then_the_workspace():

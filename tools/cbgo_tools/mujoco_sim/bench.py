@@ -1,20 +1,26 @@
 """Benchmark the simulated robot: every feasible action on random scenes it was not tuned on.
 
-Scenes come from `workspace_scene`, a generator of its own (not `cbgo.world.random_scene`,
-whose scenes the skills are tuned on), drawn inside the workspace of the contract
-(`cbgo.world.workspace_info`, what ``cbgo/sim/info`` answers): 0-2 drawers in any column whose
-opened tray and handle stay in reach, 0-2 boxes and 1-3 cups of every documented size,
-anywhere in their cell; towers up to the documented height, objects in open and closed
-drawers, a held cup or box, full and empty cups, the TCP on every level. ``--generator
-world`` draws the world model's scenes instead.
+Three scene generators (``--generator``):
 
-Each scene is loaded as ``cbgo/sim/reset`` would (a scene the workspace refuses is counted and
-drawn again; one that does not settle as described is counted and skipped). Every feasible
-(action, object) of the settled scene is then tried, each on a fresh copy of the scene:
-feasible means the world model's preconditions hold (`cbgo.world.candidates`) and the one the
-simulator adds as a precondition (`skills.missing_preconditions`: an empty gripper to grasp a
-handle). After every action, done or not, the scene read from the physics is checked with
-`cbgo.world.check_consistent`. Printed:
+- ``independent`` (the default): `workspace_scene`, a generator of its own (not the world
+  model's), drawn inside the workspace of the contract (`cbgo.world.workspace_info`, what
+  ``cbgo/sim/info`` answers): 0-2 drawers in any column (the column their tray opens into
+  kept free), 0-2 boxes and 1-3 cups of every documented size, anywhere in their cell; towers
+  up to the documented height, objects in open and closed drawers, a held cup or box, full
+  and empty cups, the TCP on every level. A scene the workspace refuses is drawn again.
+- ``paper``: the paper's scene distribution (`cbgo.world.paper_scene`: drawers on any column,
+  cups of 0.03 … 0.07 m). A scene refused at reset is *not* drawn again but counted: the goal
+  is none; the last line sums up scenes refused at reset, feasible actions done (goal ≥ 99 %),
+  physical refusals and inconsistent outcomes.
+- ``world``: the world model's `cbgo.world.random_scene` (drawers in the back row).
+
+Each scene is loaded as ``cbgo/sim/reset`` would (one that does not settle as described is
+counted and skipped). Every feasible (action, object) of the settled scene is then tried, each
+on a fresh copy of the scene: feasible means the world model's preconditions hold
+(`cbgo.world.candidates`) and the one the simulator adds as a precondition
+(`skills.missing_preconditions`: an empty gripper to grasp a handle). After every action, done
+or not, the scene read from the physics is checked with `cbgo.world.check_consistent`.
+Printed:
 
 - per action kind: tried, done, refused (the simulator turned a feasible action down without
   moving: a physical refusal), failed (it moved and its check failed), success %, scenes left
@@ -28,6 +34,7 @@ over N processes; results do not depend on it (each scene has its own seed).
 Examples::
 
     cbgo bench sim
+    cbgo bench sim --generator paper --scenes 100
     cbgo bench sim --scenes 5 --seed 3
     cbgo bench sim --actions put_into open close --jobs 2
     cbgo bench sim --generator world
@@ -48,7 +55,7 @@ from cbgo.wire import ACTIONS
 from cbgo.world import Robot as RobotState
 from cbgo.world import Scene, SceneObject
 
-GENERATORS = ("independent", "world")
+GENERATORS = ("independent", "paper", "world")
 MAX_DRAWS = 50  # scenes drawn at most for one scene index before giving up
 
 
@@ -59,7 +66,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--actions", nargs="+", choices=ACTIONS, default=list(ACTIONS),
                         metavar="ACTION", help="action kinds to try [all eleven]")
     parser.add_argument("--generator", choices=GENERATORS, default="independent",
-                        help="independent (this bench's) or world (cbgo.world.random_scene)")
+                        help="independent (this bench's), paper (the paper's distribution, "
+                             "cbgo.world.paper_scene: a scene refused at reset is counted, not "
+                             "redrawn) or world (cbgo.world.random_scene) [independent]")
     parser.add_argument("--jobs", type=int, default=1, help="processes [1]")
 
 
@@ -101,34 +110,37 @@ def workspace_scene(rng: np.random.Generator, info: dict | None = None) -> Scene
 
 def _stand_on_table(obj: SceneObject, free: list, rng: np.random.Generator, info: dict,
                     cell: float) -> bool:
-    """Puts an object on a free column, anywhere in its cell and the table area."""
+    """Puts an object on a free column, anywhere in its cell and the table area.
+
+    A drawer also takes the column its tray opens into, and stays on its column's side of
+    ``drawer_opens_away_below_x`` (which way it opens is the column's).
+    """
     xs, ys, area = info["columns_x"], info["columns_y"], info["table_area"]
     room = max(0.0, (cell - obj.size) / 2 - 0.002)
-    options = [c for c in free if obj.type != "drawer"
-               or (xs[c[0]] - info["drawer_tray_offset"] >= area["x"][0]
-                   and (c[0] - 1, c[1]) in free  # a drawer's tray needs the column in front
-                   and _drawer_min_x(obj, abs(ys[c[1]]) - room, info) <= xs[c[0]] + room)]
+    options = [c for c in free if obj.type != "drawer" or _tray_column(c, info) in free]
     if not options:
         return False
     i, j = options[int(rng.integers(len(options)))]
     free.remove((i, j))
-    if obj.type == "drawer":
-        free.remove((i - 1, j))
     x = float(np.clip(xs[i] + rng.uniform(-room, room), *area["x"]))
     y = float(np.clip(ys[j] + rng.uniform(-room, room), *area["y"]))
-    if obj.type == "drawer":  # the opened tray and handle must stay in reach
-        x = max(x, area["x"][0] + info["drawer_tray_offset"], _drawer_min_x(obj, abs(y), info))
+    if obj.type == "drawer":
+        free.remove(_tray_column((i, j), info))
+        split = info.get("drawer_opens_away_below_x", np.inf)
+        x = min(x, split - 0.001) if xs[i] < split else max(x, split)
     obj.position = (round(x, 4), round(y, 4), 0.0)
     return True
 
 
-def _drawer_min_x(drawer: SceneObject, abs_y: float, info: dict) -> float:
-    """Returns the least x of a drawer at |y| whose opened handle stays in the arm's reach."""
-    reach, handle = info.get("min_reach", 0.0), info.get("drawer_handle")
-    if handle is None or abs_y >= reach:
-        return -np.inf
-    out = drawer.size / 2 + handle["travel_per_size"] * drawer.size + handle["out"]
-    return float(np.sqrt(reach ** 2 - max(abs_y, 0.0) ** 2) + out + 0.0005)
+def _tray_column(column: tuple[int, int], info: dict) -> tuple[int, int] | None:
+    """Returns the column a drawer standing on `column` opens its tray into (None: off the grid).
+
+    Towards the robot (−x) from ``drawer_opens_away_below_x`` on, away from it nearer.
+    """
+    xs = info["columns_x"]
+    way = 1 if xs[column[0]] < info.get("drawer_opens_away_below_x", -np.inf) else -1
+    i = column[0] + way
+    return (i, column[1]) if 0 <= i < len(xs) else None
 
 
 def _rest_somewhere(obj: SceneObject, objects: list[SceneObject], rng: np.random.Generator,
@@ -165,18 +177,28 @@ def _robot(objects: list[SceneObject], rng: np.random.Generator, info: dict) -> 
 def draw_scene(seed: int, index: int, generator: str) -> tuple[Scene | None, int, list[str]]:
     """Returns scene `index` of a run, how many draws it took and the refusals on the way.
 
-    A scene that `cbgo.world.reset_refusal` refuses is drawn again (at most `MAX_DRAWS`).
+    A scene that `cbgo.world.reset_refusal` refuses is drawn again (at most `MAX_DRAWS`),
+    except for the ``paper`` generator, whose refusals count: None and the refusal.
     """
     rng = np.random.default_rng([seed, index])
     refusals = []
     for draw in range(1, MAX_DRAWS + 1):
-        scene = (workspace_scene(rng) if generator == "independent"
-                 else world.random_scene(rng))
+        scene = _generate(generator, rng)
         reason = world.reset_refusal(scene)
         if reason is None:
             return scene, draw, refusals
         refusals.append(reason)
-    return None, MAX_DRAWS, refusals
+        if generator == "paper":
+            break
+    return None, len(refusals), refusals
+
+
+def _generate(generator: str, rng: np.random.Generator) -> Scene:
+    if generator == "independent":
+        return workspace_scene(rng)
+    if generator == "paper":
+        return world.paper_scene(rng)
+    return world.random_scene(rng)
 
 
 # --------------------------------------------------------------------------- runs
@@ -204,6 +226,7 @@ class SceneRun:
     index: int
     draws: int
     refused_at_reset: list[str] = field(default_factory=list)
+    gave_up: bool = False  # refused at reset, not drawn again (paper) or too often
     not_settled: list[str] = field(default_factory=list)
     start_inconsistent: list[str] = field(default_factory=list)
     trials: list[Trial] = field(default_factory=list)
@@ -242,7 +265,7 @@ def run_scene(seed: int, index: int, generator: str = "independent",
     from cbgo.services.mujoco_sim.skills import Robot
 
     symbolic, draws, refusals = draw_scene(seed, index, generator)
-    run = SceneRun(index, draws, refusals)
+    run = SceneRun(index, draws, refusals, gave_up=symbolic is None)
     if symbolic is None:
         return run
     run.covers = coverage(symbolic)
@@ -313,13 +336,15 @@ def report(runs: list[SceneRun], actions=ACTIONS) -> list[str]:
     trials = [t for r in runs for t in r.trials]
     lines = [HEADER] + [row(a, [t for t in trials if t.action == a]) for a in actions]
     lines.append(row("all", trials))
-    ran = [r for r in runs if r.trials or not (r.not_settled or r.refused_at_reset)]
+    ran = [r for r in runs if not (r.gave_up or r.not_settled)]
     lines.append(f"scenes: {len(runs)} drawn, {len(ran)} run, "
-                 f"{sum(len(r.refused_at_reset) for r in runs)} redrawn (refused at reset), "
+                 f"{sum(len(r.refused_at_reset) - r.gave_up for r in runs)} redrawn "
+                 f"(refused at reset), {sum(r.gave_up for r in runs)} refused at reset, "
                  f"{sum(bool(r.not_settled) for r in runs)} not settled as described, "
                  f"{sum(bool(r.start_inconsistent) for r in runs)} inconsistent at start, "
                  f"{sum(bool(t.inconsistent) for t in trials)} inconsistent after an action")
     lines.append(_coverage_line([r.covers for r in ran if r.covers]))
+    lines.append(summary(runs))
     for t in trials:
         if not t.ok:
             kind = "refused" if t.refused else "failed"
@@ -334,6 +359,18 @@ def report(runs: list[SceneRun], actions=ACTIONS) -> list[str]:
             if problems:
                 lines.append(f"  {what}: scene {r.index}: " + "; ".join(problems))
     return lines
+
+
+def summary(runs: list[SceneRun]) -> str:
+    """Returns the run in one line: the figures the paper-scene goals are stated in."""
+    trials = [t for r in runs for t in r.trials]
+    done = sum(t.ok for t in trials)
+    share = 100.0 * done / len(trials) if trials else float("nan")
+    return (f"summary: {len(runs)} scenes, {sum(r.gave_up for r in runs)} refused at reset, "
+            f"{sum(bool(r.not_settled) for r in runs)} not settled; feasible actions done "
+            f"{done} of {len(trials)} ({share:.1f} %), {sum(t.refused for t in trials)} "
+            f"refused, {sum(not t.ok and not t.refused for t in trials)} failed; "
+            f"{sum(bool(t.inconsistent) for t in trials)} inconsistent outcomes")
 
 
 def _coverage_line(covers: list[dict]) -> str:
