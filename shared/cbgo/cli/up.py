@@ -16,14 +16,16 @@ stops everything and exits with code 2. Ctrl-C or SIGTERM stops the services, th
 
 Only services that exist in this installation can be started (`cbgo up --list` shows them);
 nothing is faked for the others. Alternatives (another implementation of a service's keys,
-such as dry-robot for mujoco-sim) are started only when asked for, by name or with
-``--robot``, and never together with the service they replace.
+such as dry-robot for mujoco-sim, camera-bridge for leap-bridge) are started only when asked
+for, by name, with ``--robot`` or ``--hands``, and never together with the service they replace.
 
 Examples::
 
     cbgo up                                 # router on 127.0.0.1:7447 + every built service
     cbgo up --robot dry                     # the same, with dry-robot instead of mujoco-sim
     cbgo up --robot dry --foxglove          # and the Foxglove bridge, ws://127.0.0.1:8765
+    cbgo up --hands camera --camera 0       # hands from the webcam (camera-bridge), not a Leap
+    cbgo up --hands camera --camera clip.mp4   # ... or from a video, played as a camera
     cbgo up dry-robot planner               # router + the symbolic robot + the planner
     cbgo up episode intent                  # router + two services
     cbgo up --listen tcp/127.0.0.1:7448     # router on another port; services follow it
@@ -47,7 +49,7 @@ import time
 from dataclasses import dataclass
 from typing import NoReturn
 
-from cbgo import client, registry
+from cbgo import client, keys, registry
 from cbgo.cli.common import fail
 from cbgo.config import DEFAULT_ROUTER_LISTEN, ConfigError, add_zenoh_arguments, resolve_zenoh
 from cbgo.endpoints import check_can_listen, local_endpoint
@@ -55,6 +57,9 @@ from cbgo.keys import Keys
 from cbgo.supervisor import EXIT_CONFIG, AliveWatcher, Child, Supervisor
 
 FOXGLOVE = "foxglove-bridge"  # the optional service `--foxglove` adds
+HANDS = {"leap": "leap-bridge", "camera": "camera-bridge"}
+"""`cbgo up --hands NAME`: which service publishes cbgo/hands/frame."""
+CAMERA_BRIDGE = HANDS["camera"]
 SESSION_CLOSE_S = 5.0
 """How long `up`, its children stopped, waits for its liveliness session to close."""
 STATUS_TIMEOUT_S = 3.0
@@ -76,6 +81,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             f"{k} ({v})" for k, v in registry.ROBOTS.items())
                         + "; it takes mujoco-sim's place in the default set or in the "
                           "named services [mujoco]")
+    parser.add_argument("--hands", choices=list(HANDS), default=None,
+                        help="where hands come from: " + ", ".join(
+                            f"{k} ({v})" for k, v in HANDS.items())
+                        + "; it takes leap-bridge's place in the default set or in the named "
+                          "services [leap]")
+    parser.add_argument("--camera", default=None, metavar="SRC",
+                        help="camera-bridge's source: a camera index or /dev/videoN, a video "
+                             "file or a folder of images (with --hands camera) [0]")
     parser.add_argument("--foxglove", action="store_true",
                         help="also start foxglove-bridge, the live Foxglove WebSocket server "
                              "(ws://127.0.0.1:8765; its flags come from the environment, e.g. "
@@ -111,10 +124,11 @@ def list_services() -> int:
             state += ", optional"
         print(f"{info.name:<16} {state:<34} {info.summary}")
         _print_interface(info)
-    robots = {v: k for k, v in registry.ROBOTS.items()}
+    flags = {v: f"--robot {k}" for k, v in registry.ROBOTS.items()}
+    flags |= {v: f"--hands {k}" for k, v in HANDS.items()}
     for info in registry.SERVICES:
         if info.replaces:
-            how = f"`cbgo up --robot {robots[info.name]}`" if info.name in robots else "by name"
+            how = f"`cbgo up {flags[info.name]}`" if info.name in flags else "by name"
             print(f"\n{info.name} takes the place of {info.replaces} only when asked: {how}, or "
                   f"by name (`cbgo up {info.name} ...`)")
         if info.optional:
@@ -148,19 +162,22 @@ def _print_interface(info: registry.Manifest) -> None:
 
 
 def chosen_services(names: list[str], robot: str | None = None,
-                    foxglove: bool = False) -> list[registry.Manifest]:
+                    foxglove: bool = False, hands: str | None = None) -> list[registry.Manifest]:
     """Returns the services to start, refusing unknown, unbuilt or clashing ones clearly.
 
     Args:
         names: the services named on the command line (none: the default set).
         robot: a key of `registry.ROBOTS`: that robot takes the place of the one in the set.
         foxglove: add foxglove-bridge (first, so that it sees the others' first messages).
+        hands: a key of `HANDS`: that service takes the place of the hand source in the set.
     """
     chosen = [_built(name) for name in names] if names else registry.available()
     if foxglove and FOXGLOVE not in [s.name for s in chosen]:
         chosen = [_built(FOXGLOVE), *chosen]
     if robot is not None:
         chosen = registry.swap(chosen, _built(registry.ROBOTS[robot]))
+    if hands is not None:
+        chosen = registry.swap(chosen, _built(HANDS[hands]))
     for first, other in registry.clashes(chosen):
         if first.name == other.name:
             fail(f"{first.name} is named twice", 2)
@@ -236,15 +253,27 @@ def build_children(args: argparse.Namespace, services, net: Network) -> list[Chi
                               env={"ZENOH_CONNECT": ""}))
     for info in services:
         flags = [f for ep in net.connect for f in ("--connect", ep)]
+        if info.name == CAMERA_BRIDGE and getattr(args, "camera", None):
+            flags += ["--camera", args.camera, *_camera_waits_for(args.camera, services)]
         children.append(Child(info.name, [sys.executable, "-m", info.package, *flags, *common]))
     return children
+
+
+def _camera_waits_for(camera: str, services) -> list[str]:
+    """A video or image folder plays once: it waits for the services here that read hands."""
+    if camera.isdigit() or camera.startswith("/dev/video"):
+        return []  # a live camera is not replayed; nothing to wait for
+    readers = [s.name for s in services if keys.HANDS_FRAME in s.subscribes]
+    return ["--wait-for", ",".join(readers)] if readers else []
 
 
 def run(args: argparse.Namespace) -> int:
     """Runs the supervisor until Ctrl-C/SIGTERM, then exits the process (`--list`: returns)."""
     if args.list:
         return list_services()
-    services = chosen_services(args.services, args.robot, args.foxglove)
+    services = chosen_services(args.services, args.robot, args.foxglove, args.hands)
+    if args.camera and CAMERA_BRIDGE not in [s.name for s in services]:
+        fail("--camera is camera-bridge's source: add --hands camera", 2)
     net = network_of(args)
     if net.listen:
         _check_router_can_listen(net, services)

@@ -1,0 +1,1 @@
+"""camera-bridge's offline tools: the benchmark (`cbgo bench camera`)."""
