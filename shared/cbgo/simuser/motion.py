@@ -164,13 +164,14 @@ class TimelineBuilder:
         self._append(np.repeat(self.position[None], n, 0), np.full(n, self.roll_angle), label,
                      phase)
 
-    def roll_to(self, angle_rad: float, seconds: float, phase: str, label: str | None = None
-                ) -> None:
-        """Minimum-jerk palm roll to an absolute angle, staying in place."""
+    def roll_to(self, angle_rad: float, seconds: float, phase: str, label: str | None = None,
+                drift=None) -> None:
+        """Minimum-jerk palm roll to an absolute angle, in place or drifting by `drift` (mm)."""
         n = self._frames(seconds)
         s = min_jerk(np.arange(1, n + 1) / n)
         rolls = self.roll_angle + s * (angle_rad - self.roll_angle)
-        self._append(np.repeat(self.position[None], n, 0), rolls, label, phase)
+        way = np.zeros(3) if drift is None else np.asarray(drift, dtype=float)
+        self._append(self.position[None] + s[:, None] * way[None], rolls, label, phase)
 
     def key_pose(self, pose: Any) -> None:
         """Sets the finger pose reached at the current frame."""

@@ -88,6 +88,8 @@ class UserStyle:
     length_spread: float = 0.37  # SD of the log of a swipe's length around its way's length
     # (`user.SWIPE_WAY_LENGTH`; one real person's, ways pooled: 0.38 over the SHREC'17 train
     # split; 0: every swipe of a way as long)
+    rotate_drift_mm: float = 20.0  # how far, at most, the palm drifts (any way) while it
+    # turns: a rolling palm is seldom held in place
 
     def __post_init__(self):
         if self.side not in ("left", "right"):
@@ -97,7 +99,7 @@ class UserStyle:
                 raise ConfigError(f"{name}={getattr(self, name)} is out of range")
         for name in ("curvature", "tremor_mm", "pose_variation", "gaze_noise_m", "stroke_lead",
                      "stroke_spread_mm", "rest_s", "swipe_roll_deg", "medial_roll_deg",
-                     "return_slowdown", "length_spread"):
+                     "return_slowdown", "length_spread", "rotate_drift_mm"):
             if float(getattr(self, name)) < 0:
                 raise ConfigError(f"{name}={getattr(self, name)} must not be negative")
 

@@ -5,10 +5,10 @@ notions): the hand is out of view, enters from the user's side, settles in the c
 field (preparation), performs its gestures — static poses are formed, held and released; a swipe
 starts before the middle of the field (`UserStyle.stroke_lead`), after a short rest or none,
 crosses the middle with the palm rolling as real palms do, and comes back a little more slowly,
-often without stopping; rotate rolls the palm in place — and leaves. The stroke habits are
-fitted to real people's swipes (`cbgo bench dynamic --realism DIR`). Everything random — the user's
-hand size, pose spread, stroke bow, tremor, gaze noise — derives from the scenario's seed and the
-user's name, so a scenario is reproducible frame by frame.
+often without stopping; rotate rolls the palm, the palm drifting a little — and leaves. The
+stroke habits are fitted to real people's swipes (`cbgo bench dynamic --realism DIR`).
+Everything random — the user's hand size, pose spread, stroke bow, tremor, gaze noise — derives
+from the scenario's seed and the user's name, so a scenario is reproducible frame by frame.
 """
 
 from __future__ import annotations
@@ -244,7 +244,10 @@ class SimulatedUser:
             builder.move_to(centre, max(0.3, distance / rng.uniform(60.0, 100.0)), "return")
             builder.hold(max(rest, 0.05), "prepare")
             # roll > 0 raises the thumb side on either hand (the model keeps anatomy).
-            builder.roll_to(np.radians(step.angle_deg), 0.6 / style.speed, "stroke", "rotate")
+            way = rng.normal(0.0, 1.0, 3)
+            drift = way / np.linalg.norm(way) * rng.uniform(0.0, style.rotate_drift_mm)
+            builder.roll_to(np.radians(step.angle_deg), 0.6 / style.speed, "stroke", "rotate",
+                            drift=drift)
             builder.hold(0.3 / style.speed, "stroke", "rotate")
             builder.roll_to(0.0, 1.0 / style.speed, "return")
             return

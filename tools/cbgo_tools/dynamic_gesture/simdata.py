@@ -53,6 +53,7 @@ class StyleRanges:
     medial_roll_deg: tuple[Interval, ...] = ((30.0, 70.0),)
     return_slowdown: tuple[Interval, ...] = ((0.6, 1.4),)
     length_spread: tuple[Interval, ...] = ((0.25, 0.5),)
+    rotate_drift_mm: tuple[Interval, ...] = ((0.0, 40.0),)
 
     def draw(self, rng: np.random.Generator, name: str) -> tuple[UserStyle, tuple[float, float]]:
         """Returns a user style and the (low, high) roll angles of its rotate strokes."""
@@ -70,6 +71,7 @@ class StyleRanges:
                           return_slowdown=pick(self.return_slowdown),
                           length_spread=pick(self.length_spread))
         angle = pick(self.angle_deg)
+        style.rotate_drift_mm = pick(self.rotate_drift_mm)
         return style, (angle * 0.93, angle * 1.07)
 
     def quarter(self, style: UserStyle) -> str:
@@ -110,7 +112,7 @@ def default_style_ranges() -> StyleRanges:
         return ((value, value),)
 
     habits = ("stroke_lead", "rest_s", "swipe_roll_deg", "medial_roll_deg", "return_slowdown",
-              "length_spread")
+              "length_spread", "rotate_drift_mm")
     return StyleRanges(speed=only("speed"), amplitude=only("amplitude"),
                        curvature=only("curvature"), tremor_mm=only("tremor_mm"),
                        hand_scale=only("hand_scale"), angle_deg=TRAIN.angle_deg,
