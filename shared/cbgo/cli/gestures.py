@@ -48,7 +48,11 @@ person's own pace, so that a person who swipes slowly (a line drawn in the air) 
 
 The person makes each swipe --takes times: rest the hand, swipe once, take the hand away. The
 takes' speeds are stored as <data dir>/calibration/NAME.json; the running dynamic-gesture
-re-reads it and judges strokes by it whenever cbgo/user names the person."""
+re-reads it and judges strokes by it whenever cbgo/user names the person.
+
+A static pose the tracker bends for this person (a thumbs-up read as grab) is taught with
+`cbgo gestures record thumbsup --static --takes 3 --user NAME`: the takes join the model's
+training and the running static-gesture reloads it (for every user of the data directory)."""
 
 CALIBRATE_EXAMPLES = """\
 examples:
