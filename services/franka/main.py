@@ -41,12 +41,22 @@ from cbgo.services.franka.arm import (
     Stopped,
 )
 from cbgo.services.franka.frames import Mount, SafetyBox, hand_rotation, quaternion_xyzw
-from cbgo.services.franka.plan import Grasp, Gripper, Move, Pause, Plan, PlanRefused, plan_action
+from cbgo.services.franka.plan import (
+    Grasp,
+    Gripper,
+    Holding,
+    Move,
+    Pause,
+    Plan,
+    PlanRefused,
+    plan_action,
+)
 from cbgo.services.franka.tracking import TrackedWorld
 from cbgo.world import Scene, random_scene, workspace_info
 from cbgo.world.workspace import SceneError, startable_scene
 
-SPEED_MAX = 0.5  # the highest --speed accepted: half of the arm's limits, for a shared table
+# the highest --dynamics accepted: half of the arm's limits, for a shared table
+DYNAMICS_MAX = 0.5
 NO_RENDERER = ("franka has no renderer: it drives a real arm; read the world on "
                "cbgo/scene/state, or run mujoco-sim for images")
 
@@ -61,10 +71,10 @@ class FrankaSettings(RobotCellSettings):
     base_in_table: str = field(default="0,0,0,0", metadata=_help(
         "where the robot base stands in the table frame the scene is declared in: "
         "x,y,z (m),yaw (degrees about the vertical)"))
-    speed: float = field(default=0.1, metadata=_help(
-        f"franky's relative dynamics factor for every motion (velocity, acceleration and jerk "
-        f"as a fraction of the arm's limits), 0.01-{SPEED_MAX:g}; slow steps near objects "
-        "take half"))
+    dynamics: float = field(default=0.1, metadata=_help(
+        f"the arm's speed: franky's relative dynamics factor for every motion (velocity, "
+        f"acceleration and jerk as a fraction of the arm's limits), 0.01-{DYNAMICS_MAX:g}; "
+        "slow steps near objects take half"))
     box: str = field(default="0.25,0.75,-0.30,0.30,0.005,0.55", metadata=_help(
         "the safety box the TCP must stay in, table frame: x0,x1,y0,y1,z0,z1 (m); targets "
         "outside are refused before anything moves"))
@@ -76,8 +86,8 @@ class FrankaSettings(RobotCellSettings):
     def __post_init__(self):
         super().__post_init__()
         self.dry_run = self.dry_run or not self.robot_ip.strip()  # no address: nothing moves
-        if not 0.01 <= self.speed <= SPEED_MAX:
-            raise ConfigError(f"speed={self.speed} must be within 0.01-{SPEED_MAX:g} (a "
+        if not 0.01 <= self.dynamics <= DYNAMICS_MAX:
+            raise ConfigError(f"dynamics={self.dynamics} must be within 0.01-{DYNAMICS_MAX:g} (a "
                               "fraction of the arm's velocity, acceleration and jerk limits)")
         if not 1.0 <= self.grasp_force <= GRASP_FORCE_MAX:
             raise ConfigError(f"grasp_force={self.grasp_force} must be within "
@@ -103,7 +113,7 @@ class Franka(RobotCell):
         super().__init__(settings)
         self.mount, self.box = settings.mount, settings.safety_box
         self.arm = (DryArm((0.44, 0.0, 0.36), hand_rotation()) if settings.dry_run
-                    else FrankyArm(settings.robot_ip, settings.speed, settings.grasp_force))
+                    else FrankyArm(settings.robot_ip, settings.dynamics, settings.grasp_force))
         self.world: TrackedWorld | None = None
         self.last: ArmState | None = None
         self.action: str | None = None
@@ -133,6 +143,8 @@ class Franka(RobotCell):
         if isinstance(self.arm, DryArm):
             self._declare_dry(scene)
         state = self._measured()
+        if isinstance(target, int):
+            scene = seed_scene_in_hand(scene, state.width)
         mismatch = grip_mismatch(scene, state.width)
         if mismatch is not None:
             raise SceneError(mismatch)
@@ -198,7 +210,7 @@ class Franka(RobotCell):
         return {**super().status_extra(), "robot_ip": self.settings.robot_ip,
                 "connected": self.arm.connected, "lost": self.arm.lost,
                 "connects": self.connects, "dry_run": self.settings.dry_run,
-                "speed": self.settings.speed, "box": self.box.describe(),
+                "dynamics": self.settings.dynamics, "box": self.box.describe(),
                 "unknown": sorted(self.world.unknown) if self.world else []}
 
     def on_info(self, _query: dict) -> dict:
@@ -286,6 +298,11 @@ class Franka(RobotCell):
             if not held:
                 return (f"the grasp of {step.what} failed: the fingers closed to {width:.4f} m, "
                         f"expected {step.width:.4f} ± {GRASP_TOLERANCE:.3f} m")
+        elif isinstance(step, Holding):
+            width = self.arm.read().width
+            if abs(width - step.width) > GRASP_TOLERANCE:
+                return (f"{step.what} slipped out of the fingers: they are {width:.4f} m apart, "
+                        f"expected {step.width:.4f} ± {GRASP_TOLERANCE:.3f} m")
         elif isinstance(step, Gripper):
             self.arm.open_to(step.width, stop, tick)
         elif isinstance(step, Pause):
@@ -353,6 +370,24 @@ class Franka(RobotCell):
             if now >= self._due[kind]:
                 self._due[kind] = now + 1.0 / rate
                 self.ctx.publish(topic, message())
+
+
+def seed_scene_in_hand(scene: Scene, width: float) -> Scene:
+    """Returns a seed's random scene without the load the measured fingers do not hold.
+
+    A seed's scene is the world model's invention, not the user's declaration: where it puts a
+    load in the gripper and the fingers are apart otherwise, the load (and what stands on it)
+    is left out and the gripper declared empty, so that a robot started without ``--scene``
+    comes up rather than refusing the world it invented.
+    """
+    if grip_mismatch(scene, width) is None:
+        return scene
+    held = scene.robot.holding
+    gone = {held, *scene.tower_above(held)}
+    body = scene.to_dict()
+    body["objects"] = [o for o in body["objects"] if o["name"] not in gone]
+    body["robot"] = {**body["robot"], "holding": None, "gripper_open": True}
+    return startable_scene(body)
 
 
 def grip_mismatch(scene: Scene, width: float) -> str | None:

@@ -9,11 +9,14 @@ rests on its support or in a drawer); how the hand gets there is decided here:
 - every approach is from above: up to `travel_z` (clear of every object's top), across, then
   straight down, slowly, to the grasp or release pose;
 - a grasp closes on the object's size (`Grasp`): the gripper reports whether it holds something
-  of that width, and a grasp that closes on nothing is a failure, not a success;
+  of that width, and a grasp that closes on nothing is a failure, not a success; after the
+  lift of a grasped object and the pull or push of a handle the gap is measured again
+  (`Holding`): a load or handle that slipped out of the fingers fails the action;
 - a release lowers the load until its bottom is `RELEASE_GAP` above its support, opens, leaves
   straight up;
-- ``open``/``close`` grasp the drawer's handle (`HANDLE_WIDTH`) and pull it towards the robot
-  (−x) or push it back by the tray's travel (`cbgo.world.workspace.DRAWER_TRAVEL_PER_SIZE`);
+- ``open``/``close`` grasp the drawer's handle (`HANDLE_WIDTH`) and pull it out (towards the
+  robot, or away from it for a cabinet nearer than 0.50 m: `cbgo.world.drawer_direction`) or
+  push it back, by the tray's travel (`cbgo.world.workspace.DRAWER_TRAVEL_PER_SIZE`);
 - ``pour`` carries the held cup over the target, tilts it about the fingers' closing axis by
   ``params.angle_deg`` (default 90), holds, and tilts it back.
 
@@ -68,13 +71,21 @@ class Grasp:
 
 
 @dataclass(frozen=True)
+class Holding:
+    """Check that the fingers still hold `what`, `width` m wide: it may have slipped out."""
+
+    width: float
+    what: str
+
+
+@dataclass(frozen=True)
 class Pause:
     """Hold still for `seconds`."""
 
     seconds: float
 
 
-Step = Move | Gripper | Grasp | Pause
+Step = Move | Gripper | Grasp | Holding | Pause
 
 
 @dataclass
@@ -98,6 +109,8 @@ class Plan:
                             "tilt_deg": step.tilt_deg, "slow": step.slow})
             elif isinstance(step, Grasp):
                 out.append({"grasp": step.what, "width": round(step.width, 4)})
+            elif isinstance(step, Holding):
+                out.append({"holding": step.what, "width": round(step.width, 4)})
             elif isinstance(step, Gripper):
                 out.append({"gripper": round(step.width, 4)})
             else:
@@ -173,7 +186,8 @@ def _pick_up(_action, obj: str, _params, scene: Scene, _after) -> tuple[list[Ste
     steps = [Gripper(_pre_width(target.size)),
              *_from_above(scene.robot.tcp, grasp, height),
              Grasp(target.size, obj),
-             Move((x, y, lift), slow=True)]
+             Move((x, y, lift), slow=True),
+             Holding(target.size, obj)]
     return steps, [obj, *scene.tower_above(obj)]
 
 
@@ -226,10 +240,12 @@ def _drawer(action: str, obj: str, _params, scene: Scene, _after) -> tuple[list[
     start = handle_point(scene, obj, opened=not opening)
     end = handle_point(scene, obj, opened=opening)
     height = travel_z(scene, None)
+    handle = f"the handle of {obj}"
     steps = [Gripper(_pre_width(HANDLE_WIDTH)),
              *_from_above(scene.robot.tcp, start, height),
-             Grasp(HANDLE_WIDTH, f"the handle of {obj}"),
+             Grasp(HANDLE_WIDTH, handle),
              Move(end, slow=True),
+             Holding(HANDLE_WIDTH, handle),
              Gripper(_pre_width(HANDLE_WIDTH)),
              Move((end[0], end[1], height), slow=True)]
     return steps, [obj, *scene.contents(obj)]

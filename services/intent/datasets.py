@@ -68,7 +68,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -208,7 +208,8 @@ def draw(name: str, rng: np.random.Generator, tables: Tables | None = None,
          users: Sequence[str] | None = None, grid: Grid = DEFAULT_GRID,
          focus_sigma_cells: float = FOCUS_SIGMA_CELLS,
          shuffle_rng: np.random.Generator | None = None,
-         repairable: bool = False) -> Sample | None:
+         repairable: bool = False,
+         only: Callable[[str, str, int, str], bool] | None = None) -> Sample | None:
     """Draws one observation of dataset `name`; None when the draw is discarded.
 
     Args:
@@ -221,12 +222,17 @@ def draw(name: str, rng: np.random.Generator, tables: Tables | None = None,
         shuffle_rng: D5's object-order shuffles (default: `rng`); a separate generator keeps
             D5 the very observations of D4 with the same seed, shuffled.
         repairable: also draw intents the planner makes feasible (see the module docstring).
+        only: keep only the intents for which ``only(action, object type, state bit, gesture)``
+            holds (the draw is discarded when none is left); e.g. the contexts a user's
+            mapping states, to show a model many of them.
     """
     tables = tables or load_tables()
     users = list(users or tables.users)
     scene = random_scene(rng, grid)
     user = users[rng.integers(len(users))]
     pairs = intent_pairs(scene, grid, repairable)
+    if only is not None:
+        pairs = [(a, t) for a, t in pairs if _wanted(only, tables, name, a, t, scene, user, grid)]
     if not pairs:
         return None
     action, target = pairs[rng.integers(len(pairs))]
@@ -241,6 +247,14 @@ def draw(name: str, rng: np.random.Generator, tables: Tables | None = None,
         order = (shuffle_rng or rng).permutation(len(scene.objects))
         scene.objects = [scene.objects[i] for i in order]
     return Sample(scene, user, g, focus, action, target, gesture, repaired)
+
+
+def _wanted(only: Callable[[str, str, int, str], bool], tables: Tables, name: str, action: str,
+            target: str, scene: Scene, user: str, grid: Grid) -> bool:
+    obj_type = scene.get(target).type
+    state = gesture_context(action, target, scene, grid)[0]
+    gesture = tables.gesture(name, action, obj_type, state, user)
+    return gesture is not None and only(action, obj_type, state, gesture)
 
 
 def samples(name: str, n: int, seed: int, **kwargs: Any) -> Iterator[Sample]:

@@ -21,7 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from cbgo.services.intent.decide import DecisionConfig, decide
+from cbgo.services.intent.clarify import ANSWER_GESTURES, AnswerError, Clarification, Clarifications
+from cbgo.services.intent.decide import DecisionConfig, action_params, decide
 from cbgo.services.intent.models import Batch, OursModel, map_gestures
 from cbgo.services.intent.personal import Correction, Personal, PersonalStore
 from cbgo.wire import ACTIONS, SCHEMA_VERSION
@@ -73,6 +74,7 @@ class IntentEngine:
         self.history: OrderedDict[str, Record] = OrderedDict()
         self.last_by_user: dict[str, Record] = {}
         self.last: Record | None = None
+        self.clarifications = Clarifications()
 
     # ---------------------------------------------------------------- inputs
 
@@ -129,8 +131,12 @@ class IntentEngine:
 
     def infer(self, gestures: Mapping[str, Any], scene: Mapping[str, Any],
               focus: list[float] | None, user: str, params: Mapping[str, Any] | None = None,
-              episode: str | None = None, model: str | None = None) -> dict[str, Any]:
+              episode: str | None = None, model: str | None = None,
+              ask: bool = True) -> dict[str, Any]:
         """Returns the ``cbgo/intent`` message for one observation.
+
+        With `ask`, an uncertain intent opens a clarification (`clarify`) and names it in
+        ``clarification``; without (a query), its candidates are only in ``reason``.
 
         Raises:
             InputError: a semantically bad input (see the check_* methods).
@@ -152,11 +158,18 @@ class IntentEngine:
         batch = Batch.from_scene(world, g, user_vec, focus, self.cell)
         joint = net.predict(batch, samples=self.samples).joint[0]
         d = decide(joint, world.names, world, self.decision, params)
+        status = "low_confidence" if d.status == "clarify" else d.status
         message = self._message(episode, d.action, d.object, d.params, d.p_action, d.p_object,
-                                d.confidence, d.status, d.reason, name)
+                                d.confidence, status, d.reason, name)
         context = d.object or (max(d.p_object, key=d.p_object.get) if d.p_object else None)
-        self._remember(Record(user, episode, dict(gestures), dict(scene), focus, params, message,
-                              context))
+        record = Record(user, episode, dict(gestures), dict(scene), focus, params, message,
+                        context)
+        self._remember(record)
+        if d.status == "clarify" and ask:
+            asked = self.clarifications.ask(record, d.candidates, [
+                action_params(c.action, params, self.decision.pour_angle_deg)
+                for c in d.candidates])
+            message["clarification"] = asked.id
         return message
 
     @staticmethod
@@ -231,4 +244,79 @@ class IntentEngine:
             episode=record.episode, predicted={"action": record.intent["action"],
                                                "object": record.intent["object"]},
             ts=time.time())
+        return correction, self.personal.add(correction)
+
+    # ---------------------------------------------------------------- asking back
+
+    def answer(self, answer: Mapping[str, Any]) -> tuple[Clarification, dict[str, Any] | None]:
+        """Applies a ``cbgo/intent/answer``: returns the clarification and the intent to publish.
+
+        The intent, only when confirmed, is the accepted intent of the clarified episode.
+
+        Raises:
+            InputError: an unknown or closed clarification, another user's, a bad answer.
+        """
+        asked = self.clarifications.open.get(answer["id"])
+        if asked is not None and asked.user != answer["user"]:
+            raise InputError(f"clarification {answer['id']!r} asks {asked.user!r}, not "
+                             f"{answer['user']!r}")
+        try:
+            asked = self.clarifications.answer(answer["id"], answer["answer"],
+                                               answer.get("choice"))
+        except AnswerError as e:
+            raise InputError(str(e)) from None
+        return asked, self._confirmed(asked, asked.record.episode)
+
+    def answer_by_gesture(self, summary: Mapping[str, Any]) -> dict[str, Any] | None:
+        """Returns the intent of a summary that answers the user's open clarification.
+
+        While a clarification is open, the user's next gesture answers it when it is one of
+        `ANSWER_GESTURES` (its strongest gesture): a thumbs-up gives the accepted intent of the
+        highlighted candidate, a swipe a ``low_confidence`` intent that names the new highlight.
+        Any other gesture returns None: it is read as a new request (which cancels the question).
+        """
+        asked = self.clarifications.of_user(summary["user"])
+        if asked is None:
+            return None
+        try:
+            g = self.gesture_vector(summary["gestures"])
+        except InputError:
+            return None
+        answer = ANSWER_GESTURES.get(self.gestures[int(np.argmax(g))])
+        if answer is None:
+            return None
+        self.clarifications.answer(asked.id, answer)
+        episode = summary["episode"]
+        confirmed = self._confirmed(asked, episode)
+        if confirmed is not None:
+            return confirmed
+        shown = asked.candidates[asked.highlighted]
+        return {**self._message(episode, None, None, {}, {}, {}, shown.p, "low_confidence",
+                                f"answer to clarification {asked.id}: {answer}; highlighted "
+                                f"{shown.label}", self.model.name), "clarification": asked.id}
+
+    def _confirmed(self, asked: Clarification, episode: str | None) -> dict[str, Any] | None:
+        if asked.state != "confirmed" or asked.chosen is None:
+            return None
+        chosen = asked.candidates[asked.chosen]
+        intent = asked.record.intent
+        return {**self._message(episode, chosen.action, chosen.object, asked.params[asked.chosen],
+                                intent["p_action"], intent["p_object"], chosen.p, "accepted",
+                                f"{chosen.label} confirmed by {asked.user} (asked with "
+                                f"p={chosen.p:.2f})", intent["model"]),
+                "clarification": asked.id}
+
+    def learn_from(self, asked: Clarification) -> tuple[Correction, Personal] | None:
+        """Stores a confirmed answer as a correction of the user's model (None: not learnt).
+
+        The confirmed candidate is what the gesture meant, in the scene it was made in.
+        """
+        if self.personal is None or asked.chosen is None:
+            return None
+        chosen, record = asked.candidates[asked.chosen], asked.record
+        correction = Correction(
+            user=record.user, action=chosen.action, object=chosen.object,
+            gestures=record.gestures, scene=record.scene, focus=record.focus,
+            params=record.params, context_object=chosen.object or record.context_object,
+            episode=record.episode, predicted={"action": None, "object": None}, ts=time.time())
         return correction, self.personal.add(correction)

@@ -18,6 +18,13 @@ model from the default one and all of that user's corrections, in two stages:
    not forgotten) from which every observation is dropped whose context — target type, its
    state and the strongest gesture — a correction redefines.
 
+A user's **stated mapping** (``mapping.yaml`` beside the corrections; `mapping`) is a prior
+of that user's model: the model is always fine-tuned (stage ``mapped``) on a replay drawn from
+the profile's table with the mapping's rules written in (plus observations drawn in the stated
+contexts), with the corrections on top. Without a profile fit: the mapping, not the default
+users, says what the gestures mean. A file that does not load is refused with the reason and
+the mapping in use stays (after a restart, the one stored in the user's model metadata).
+
 A correction that names no object (moves, place, or the object left open) is learnt through the
 marginal likelihood Σ_o p(object, action). A personal model is rebuilt from its feedback file
 when the default model it was made from changes.
@@ -39,7 +46,9 @@ import torch
 from cbgo import bayes
 from cbgo.errors import ConfigError
 from cbgo.services.intent import datasets
+from cbgo.services.intent import mapping as mapping_file
 from cbgo.services.intent.decide import DecisionConfig, decide
+from cbgo.services.intent.mapping import GestureMapping, apply
 from cbgo.services.intent.models import Batch, OursModel, map_gestures, train_config
 from cbgo.wire import ACTIONS
 from cbgo.world import Scene
@@ -48,6 +57,12 @@ PROFILE_STEPS = 150
 PROFILE_PRIOR = 0.01  # L2 pull of the profile logits towards the starting profile
 REPLAY_SIZE = 600
 CORRECTION_SHARE = 1 / 3
+# A stated mapping is a prior the model is fine-tuned to: more replay and steps than a
+# correction's refit, so that it is followed from the first episode (>= 99 % of the stated
+# contexts for the D4 users of `cbgo bench intent-mapping`; about 10 s on a 2-core CPU).
+MAPPING_REPLAY = 1200
+MAPPING_STEPS = 800
+STATED_REPLAY = 150  # extra replay observations drawn in the contexts a mapping states
 
 
 @dataclass
@@ -148,6 +163,9 @@ class PersonalStore:
         self._cache: dict[str, Personal | None] = {}
         self._memory: dict[str, list[Correction]] = {}
         self._replay: dict[str, datasets.Dataset] = {}
+        self._mappings: dict[str, GestureMapping] = {}
+        self._mapping_stamps: dict[str, tuple[int, int] | None] = {}
+        self.mapping_errors: dict[str, str] = {}  # user -> why their file is not in use
 
     def start_vector(self, user: str) -> np.ndarray:
         """Returns the user vector of a user without corrections."""
@@ -168,23 +186,108 @@ class PersonalStore:
         return [Correction.from_json(line) for line in path.read_text().splitlines() if line]
 
     def get(self, user: str) -> Personal | None:
-        """Returns a user's personal model (None: the user has made no corrections)."""
+        """Returns a user's personal model (None: no corrections and no mapping)."""
         if user not in self._cache:
             self._cache[user] = self._load(user)
         return self._cache[user]
 
-    def _load(self, user: str) -> Personal | None:
+    def _saved(self, user: str) -> OursModel | None:
         folder = self._dir(user)
-        if folder is not None and (folder / "model.json").exists():
-            try:
-                model = OursModel.load(folder / "model")
-                if model.meta.get("base_fingerprint") == self.base_fingerprint:
-                    return Personal(model, np.asarray(model.meta["user_vector"]),
-                                    model.meta["stage"], int(model.meta["corrections"]))
-            except ConfigError:
-                pass  # unreadable: rebuild from the corrections below
+        if folder is None or not (folder / "model.json").exists():
+            return None
+        try:
+            model = OursModel.load(folder / "model")
+        except ConfigError:
+            return None  # unreadable: rebuilt from the corrections and the mapping
+        return model if model.meta.get("base_fingerprint") == self.base_fingerprint else None
+
+    def _load(self, user: str) -> Personal | None:
+        saved = self._saved(user)
+        mapping = self.mapping(user, saved)
+        if saved is not None and saved.meta.get("mapping_key", "") == (
+                mapping.key() if mapping else ""):
+            return Personal(saved, np.asarray(saved.meta["user_vector"]), saved.meta["stage"],
+                            int(saved.meta["corrections"]))
         found = self.corrections(user)
-        return self._update(user, found) if found else None
+        return self._update(user, found) if found or mapping else None
+
+    # ------------------------------------------------------------ the user's stated mapping
+
+    def mapping_path(self, user: str) -> Path | None:
+        """Where a user's mapping file lives (None: the store keeps nothing on disk)."""
+        folder = self._dir(user)
+        return None if folder is None else folder / mapping_file.FILE_NAME
+
+    def mapping(self, user: str, saved: OursModel | None = None) -> GestureMapping:
+        """Returns the mapping in use for a user, reading the file the first time.
+
+        A file that does not load is refused (the reason in `mapping_errors`); the mapping
+        the user's saved model was fitted to then stays in use.
+        """
+        if user not in self._mappings:
+            path = self.mapping_path(user)
+            self._mapping_stamps[user] = None if path is None else mapping_file.stamp(path)
+            try:
+                self._mappings[user] = GestureMapping() if path is None else mapping_file.load(
+                    path, self.base.meta["gestures"])
+                self.mapping_errors.pop(user, None)
+            except mapping_file.MappingError as e:
+                self.mapping_errors[user] = str(e)
+                fitted = (saved or self._saved(user) or OursModel(meta={})).meta.get("mapping")
+                self._mappings[user] = mapping_file.parse(fitted, self.base.meta["gestures"])
+        return self._mappings[user]
+
+    def set_mapping(self, user: str, mapping: GestureMapping) -> Personal | None:
+        """Puts a mapping in use for a user (not written to disk) and refits their model."""
+        found = self.corrections(user)
+        personal = self.fitted(user, found, mapping) if found or mapping else None
+        self.install(user, mapping, personal)
+        return personal
+
+    def install(self, user: str, mapping: GestureMapping, personal: Personal | None) -> None:
+        """Puts a mapping and the model fitted to it (`fitted`; None: the default) in use."""
+        self._mappings[user] = mapping
+        self.mapping_errors.pop(user, None)
+        self._cache[user] = personal
+        folder = self._dir(user)
+        if personal is not None and folder is not None:
+            personal.model.save(folder / "model")
+
+    def watched_users(self) -> list[str]:
+        """Users whose mapping file may change: those seen, and every folder with a mapping."""
+        users = set(self._mappings)
+        if self.root is not None and self.root.is_dir():
+            users |= {p.parent.name for p in self.root.glob(f"*/{mapping_file.FILE_NAME}")
+                      if safe_dirname(p.parent.name) == p.parent.name}
+        return sorted(users)
+
+    def poll_mappings(self, refit=None) -> list[tuple[str, str | None]]:
+        """Reloads the mapping files that changed; returns (user, error or None) for each.
+
+        A changed file that loads is put in use and the user's model refitted (by
+        ``refit(user, mapping)`` when given, e.g. on a worker thread, else at once); one that
+        does not is refused with the reason and the mapping in use stays.
+        """
+        changes = []
+        for user in self.watched_users():
+            path = self.mapping_path(user)
+            now = mapping_file.stamp(path)
+            if user in self._mapping_stamps and now == self._mapping_stamps[user]:
+                continue
+            self._mapping_stamps[user] = now
+            try:
+                mapping = mapping_file.load(path, self.base.meta["gestures"])
+            except mapping_file.MappingError as e:
+                self.mapping(user)  # the one in use stays (read from the model if need be)
+                self.mapping_errors[user] = str(e)
+                changes.append((user, str(e)))
+                continue
+            if user in self._mappings and mapping == self._mappings[user]:
+                self.mapping_errors.pop(user, None)
+                continue
+            (refit or self.set_mapping)(user, mapping)
+            changes.append((user, None))
+        return changes
 
     def add(self, correction: Correction) -> Personal:
         """Stores a correction and refits that user's model; returns it."""
@@ -199,24 +302,65 @@ class PersonalStore:
                                                     self.corrections(correction.user))
         return self._cache[correction.user]
 
+    def mark_seen(self, user: str) -> None:
+        """Notes the mapping file as read (a change written by the service is not polled again)."""
+        path = self.mapping_path(user)
+        self._mapping_stamps[user] = None if path is None else mapping_file.stamp(path)
+
     def _update(self, user: str, corrections: list[Correction]) -> Personal:
-        personal = personalise(self.base, corrections, self.start_vector(user), self._replay_for,
-                               steps=self.steps, seed=self.seed,
-                               accept_repairable=self.accept_repairable)
-        personal.model.meta.update(user=user, base_fingerprint=self.base_fingerprint,
-                                   user_vector=personal.user_vector.tolist(),
-                                   stage=personal.stage, corrections=personal.corrections,
-                                   model_id=f"{self.base.name}+{user}", updated=time.time())
+        personal = self.fitted(user, corrections, self.mapping(user))
         folder = self._dir(user)
         if folder is not None:
             personal.model.save(folder / "model")
         return personal
 
-    def _replay_for(self, user: str) -> datasets.Dataset:
-        if user not in self._replay:
-            self._replay[user] = datasets.make("D4", self.replay, self.seed, users=[user],
-                                               repairable=trained_with_repairs(self.base))
-        return self._replay[user]
+    def fitted(self, user: str, corrections: list[Correction],
+               mapping: GestureMapping) -> Personal:
+        """Returns the user's model fitted to a mapping and corrections (seconds of work).
+
+        Changes nothing the service reads (only the replay cache), so it may run on a worker
+        thread while the model in use keeps serving; `install` then puts it in use.
+        """
+        steps = max(self.steps, MAPPING_STEPS) if mapping else self.steps
+        personal = personalise(self.base, corrections, self.start_vector(user), self._replay_for,
+                               steps=steps, seed=self.seed,
+                               accept_repairable=self.accept_repairable, mapping=mapping)
+        personal.model.meta.update(user=user, base_fingerprint=self.base_fingerprint,
+                                   user_vector=personal.user_vector.tolist(),
+                                   stage=personal.stage, corrections=personal.corrections,
+                                   mapping=mapping.to_dict(),
+                                   mapping_key=mapping.key() if mapping else "",
+                                   model_id=f"{self.base.name}+{user}", updated=time.time())
+        return personal
+
+    def _replay_for(self, user: str, mapping: GestureMapping | None = None) -> datasets.Dataset:
+        mapping = mapping or GestureMapping()
+        key = f"{user}+{mapping.key()}" if mapping else user
+        if key not in self._replay:
+            size = max(self.replay, MAPPING_REPLAY) if mapping else self.replay
+            self._replay[key] = mapped_replay(user, mapping, size, self.seed,
+                                              trained_with_repairs(self.base))
+        return self._replay[key]
+
+
+def mapped_replay(profile: str, mapping: GestureMapping, n: int, seed: int,
+                  repairable: bool) -> datasets.Dataset:
+    """Returns D4 drawn for `profile` with the mapping's rules written into its table.
+
+    With rules, `STATED_REPLAY` more observations are drawn among the contexts the rules
+    cover (some, like pouring, are rare in random scenes), so the stated meanings are seen.
+    """
+    if not mapping:
+        return datasets.make("D4", n, seed, users=[profile], repairable=repairable)
+    tables = apply(datasets.load_tables(), profile, mapping)
+    stated = {(t, bit, r.gesture) for r in mapping.rules for t, bit in r.contexts()}
+    items = list(datasets.samples("D4", n, seed, users=[profile], repairable=repairable,
+                                  tables=tables))
+    items += datasets.samples("D4", STATED_REPLAY, seed + 1, users=[profile],
+                              repairable=repairable, tables=tables,
+                              only=lambda _a, t, bit, g: (t, bit, g) in stated)
+    return datasets.to_dataset(items, {"dataset": "D4", "seed": seed, "n": len(items),
+                                       "repairable": repairable, "mapping": mapping.key()})
 
 
 # ==================================================================== fitting
@@ -242,7 +386,8 @@ def explains(model: OursModel, batch: Batch, scenes: Sequence[Scene],
              corrections: Sequence[Correction], accept_repairable: bool = False) -> bool:
     """Returns whether the model now decides every correction as corrected."""
     joint = model.predict(batch, samples=16).joint
-    config = DecisionConfig(min_confidence=0.0, accept_repairable=accept_repairable)
+    config = DecisionConfig(min_confidence=0.0, accept_repairable=accept_repairable,
+                            clarify=False)
     for i, (scene, c) in enumerate(zip(scenes, corrections, strict=True)):
         d = decide(joint[i, :len(scene.objects)], scene.names, scene, config, c.params)
         if d.action != c.action or (c.object is not None and d.object not in (None, c.object)):
@@ -275,36 +420,71 @@ def context_key(scene: Scene, obj: str | None, g: np.ndarray) -> tuple | None:
 
 def personalise(base: OursModel, corrections: Sequence[Correction], start: np.ndarray,
                 replay_for, steps: int = 300, seed: int = 0,
-                accept_repairable: bool = False) -> Personal:
+                accept_repairable: bool = False,
+                mapping: GestureMapping | None = None) -> Personal:
     """Returns the personal model that explains `corrections` (see the module docstring).
 
     Args:
         base: the default model (not changed).
-        corrections: the user's corrections.
+        corrections: the user's corrections (may be empty when a mapping is given).
         start: the user vector to start from (the user's profile).
-        replay_for: known user name -> its replay `Dataset` (D4), for fine-tuning.
+        replay_for: (known user name, mapping) -> its replay `Dataset` (D4 drawn from that
+            user's table with the mapping's rules written in), for fine-tuning.
         steps: fine-tuning gradient steps.
         seed: training seed.
         accept_repairable: decide as the service does (see `PersonalStore`).
+        mapping: the user's stated mapping (`cbgo.services.intent.mapping`): a prior the
+            model is always fine-tuned to, from the first episode on.
     """
-    batch, action, target, scenes = correction_batch(base, corrections)
-    user = fit_user_vector(base, batch, action, target, start)
-    if explains(base, batch.with_user(user), scenes, corrections, accept_repairable):
-        return Personal(base.copy(), user, "profile", len(corrections))
-    model = base.copy()
+    mapping = mapping or GestureMapping()
+    if not corrections and not mapping:
+        return Personal(base.copy(), start, "default", 0)
+    found = correction_batch(base, corrections) if corrections else None
+    user = start
+    if found is not None and not mapping:
+        batch, action, target, scenes = found
+        user = fit_user_vector(base, batch, action, target, start)
+        if explains(base, batch.with_user(user), scenes, corrections, accept_repairable):
+            return Personal(base.copy(), user, "profile", len(corrections))
     profile = base.meta["users"][int(np.argmax(user))]
-    replay = replay_for(profile)
-    keys = {context_key(s, c.object or c.context_object, batch.g[i])
-            for i, (s, c) in enumerate(zip(scenes, corrections, strict=True))}
-    keep = np.array([(datasets.OBJECT_TYPES[replay.obj_type[i, replay.target[i]]],
-                      int(replay.obj_state[i, replay.target[i]]), int(np.argmax(replay.g[i])))
-                     not in keys for i in range(len(replay))])
-    replay_batch = Batch.from_dataset(replay.subset(np.flatnonzero(keep)))
-    repeats = max(1, round(CORRECTION_SHARE * len(replay_batch.g) / (1 - CORRECTION_SHARE)
-                           / len(corrections)))
-    index = np.tile(np.arange(len(corrections)), repeats)
-    data = Batch.concat([replay_batch, batch.subset(index)]).with_user(user)
+    model = finetune(base, user, replay_for(profile, mapping), corrections, found, steps, seed)
+    return Personal(model, user, "mapped" if mapping else "finetuned", len(corrections))
+
+
+def finetune(base: OursModel, user: np.ndarray, replay: datasets.Dataset,
+             corrections: Sequence[Correction], found: tuple | None, steps: int,
+             seed: int) -> OursModel:
+    """Returns a copy of `base` trained further on the replay and the corrections.
+
+    Replay observations whose context (target type, state, strongest gesture) a correction
+    redefines are dropped; the corrections are repeated to `CORRECTION_SHARE` of the data.
+    """
+    model = base.copy()
+    keep = np.ones(len(replay), bool)
+    if found is not None:
+        batch, _, _, scenes = found
+        keys = {context_key(s, c.object or c.context_object, batch.g[i])
+                for i, (s, c) in enumerate(zip(scenes, corrections, strict=True))}
+        keep = np.array([replay_context(replay, i) not in keys for i in range(len(replay))])
+    index = np.flatnonzero(keep)
+    parts = [Batch.from_dataset(replay.subset(index))]
+    actions, targets = [replay.action[index]], [replay.target[index]]
+    if found is not None:
+        batch, action, target, _ = found
+        repeats = max(1, round(CORRECTION_SHARE * len(index) / (1 - CORRECTION_SHARE)
+                               / len(corrections)))
+        again = np.tile(np.arange(len(corrections)), repeats)
+        parts.append(batch.subset(again))
+        actions.append(action[again])
+        targets.append(target[again])
+    data = Batch.concat(parts).with_user(user)
     config = train_config(data.n, steps=steps, lr=0.005, seed=seed, time_limit_s=30.0)
-    model.fit(data, np.concatenate([replay.action[keep], action[index]]),
-              np.concatenate([replay.target[keep], target[index]]), config)
-    return Personal(model, user, "finetuned", len(corrections))
+    model.fit(data, np.concatenate(actions), np.concatenate(targets), config)
+    return model
+
+
+def replay_context(replay: datasets.Dataset, i: int) -> tuple[str, int, int]:
+    """(type, state bit, strongest gesture) of a replay observation's target."""
+    slot = replay.target[i]
+    return (datasets.OBJECT_TYPES[replay.obj_type[i, slot]], int(replay.obj_state[i, slot]),
+            int(np.argmax(replay.g[i])))

@@ -8,7 +8,14 @@ limited rate and answers the page with the reason). Requests are JSON objects of
 - ``{"type": "stop", "id": N}``: publish ``cbgo/robot/stop`` (``v``, ``ts``, ``reason``);
 - ``{"type": "feedback", "id": N, "action": A, "object": O|null, "episode": E|null,
   "user": U|null}``: publish ``cbgo/intent/feedback`` for the user of the episode's summary
-  (as the intent service saw it), else for ``user`` (the page's current user).
+  (as the intent service saw it), else for ``user`` (the page's current user);
+- ``{"type": "answer", "id": N, "clarification": C, "user": U, "answer": A, "choice": K|null}``:
+  publish ``cbgo/intent/answer`` (a click on a clarification's candidate: ``confirm`` with its
+  index as ``choice``);
+- ``{"type": "mapping", "id": N, "user": U, "op": "show"|"set"|"unset", "gesture": G,
+  "action": A, "on": T, "state": S}``: ask the intent service's ``@ctl/intent/mapping`` for
+  the user's gesture mapping, or to set or unset one rule (the intent service, which owns
+  the user's mapping file, validates the rule and names what it knows).
 
 ``id`` (optional, an integer) is echoed in the answer so the page knows which click it was.
 """
@@ -23,6 +30,9 @@ from cbgo import wire
 from cbgo.errors import RejectedMessage
 
 MAX_REQUEST_BYTES = 4096
+MAPPING_OPS = ("show", "set", "unset")
+MAPPING_FIELDS = ("gesture", "action", "on", "state")
+MAX_NAME = 64  # a user, gesture, action, type or state name
 STOP_REASON = "stop pressed on the web page"
 
 
@@ -67,8 +77,12 @@ def parse(text: str | bytes, users: dict[str, str], now: float | None = None) ->
                                        "reason": STOP_REASON})
     if kind == "feedback":
         return Request("feedback", ident, _feedback(request, users, now))
-    raise RejectedMessage(f"unknown request type {kind!r}; expected 'stop' or 'feedback'",
-                          "type")
+    if kind == "answer":
+        return Request("answer", ident, _answer(request, now))
+    if kind == "mapping":
+        return Request("mapping", ident, _mapping(request))
+    raise RejectedMessage(f"unknown request type {kind!r}; expected 'stop', 'feedback', "
+                          "'answer' or 'mapping'", "type")
 
 
 def request_id(text: str | bytes) -> int | None:
@@ -78,6 +92,35 @@ def request_id(text: str | bytes) -> int | None:
     except (json.JSONDecodeError, AttributeError, TypeError, UnicodeDecodeError):
         return None
     return ident if type(ident) is int else None
+
+
+def _answer(request: dict, now: float) -> dict:
+    message = {"v": wire.SCHEMA_VERSION, "ts": now, "id": request.get("clarification"),
+               "user": request.get("user"), "answer": request.get("answer")}
+    if request.get("choice") is not None:
+        message["choice"] = request["choice"]
+    return wire.validate(message, wire.INTENT_ANSWER, "intent/answer")
+
+
+def _name(value, field: str) -> str:
+    if not isinstance(value, str) or not 0 < len(value) <= MAX_NAME:
+        raise RejectedMessage(f"expected a name of 1-{MAX_NAME} characters", field)
+    return value
+
+
+def _mapping(request: dict) -> dict:
+    op = request.get("op", "show")
+    if op not in MAPPING_OPS:
+        raise RejectedMessage(f"expected one of {', '.join(MAPPING_OPS)}, got {op!r}", "op")
+    query = {"v": wire.SCHEMA_VERSION, "user": _name(request.get("user"), "user"), "op": op}
+    for field in MAPPING_FIELDS:
+        if request.get(field) not in (None, ""):
+            query[field] = _name(request[field], field)
+    needed = {"show": (), "set": ("gesture", "action"), "unset": ("gesture",)}[op]
+    for field in needed:
+        if field not in query:
+            raise RejectedMessage(f"{op} needs the {field}", field)
+    return query
 
 
 def _feedback(request: dict, users: dict[str, str], now: float) -> dict:

@@ -4,9 +4,11 @@ Behaviour (the contract is services/web/README.md):
 - every data key is subscribed to; each valid message becomes a view for the page
   (`views.Views`: hands in the robot base frame, high-rate streams downsampled to ``rate_hz``,
   evidence recomputed with the episode service's model) and goes out on the WebSocket;
-- the page's requests (STOP, feedback) are checked (`inbound.parse`) and published on
-  ``cbgo/robot/stop`` and ``cbgo/intent/feedback``; a bad one is rejected, counted, logged and
-  answered with the reason;
+- the page's requests (STOP, feedback, a clarification's answer) are checked (`inbound.parse`)
+  and published on ``cbgo/robot/stop``, ``cbgo/intent/feedback`` and ``cbgo/intent/answer``;
+  a bad one is rejected, counted, logged and answered with the reason; the mapping table's
+  requests are asked of ``@ctl/intent/mapping`` (the intent service owns the users' mapping
+  files) and its answer goes to the pages as ``@mapping``;
 - every ``status_period_s`` the services are asked for their status (`cbgo.client.status`) and
   their liveliness tokens; the page's services panel shows the answers, and the robot panel
   where the robot cell's world comes from (`robot_cell_view`);
@@ -36,6 +38,7 @@ from cbgo.services.web.views import Views, to_json
 from cbgo.world.workspace import workspace_info
 
 MAX_EPISODES = 1000  # episode -> user entries kept for feedback
+MAPPING_TIMEOUT_S = 5.0  # how long a mapping query waits for the intent service
 
 
 @dataclass
@@ -79,7 +82,7 @@ class Web(Service):
         self.views = Views(settings.rate_hz, time.monotonic)
         self.users: OrderedDict[str, str] = OrderedDict()
         self._users_lock = threading.Lock()  # written on the event loop, read on the server's
-        self.requests = {"stop": 0, "feedback": 0, "rejected": 0}
+        self.requests = {"stop": 0, "feedback": 0, "answer": 0, "mapping": 0, "rejected": 0}
         self.workspace = {"source": "cbgo.world.workspace (default grid)",
                           "workspace": workspace_info()}
         self._stop = threading.Event()
@@ -93,7 +96,7 @@ class Web(Service):
         self.ctx = ctx
         for topic in keys.DATA_TOPICS:
             ctx.subscribe(topic, lambda msg, suffix=topic.suffix: self.forward(suffix, msg))
-        ctx.publishes(keys.ROBOT_STOP, keys.INTENT_FEEDBACK)
+        ctx.publishes(keys.ROBOT_STOP, keys.INTENT_FEEDBACK, keys.INTENT_ANSWER)
         self.server = HttpServer(self.settings.http_host, self.settings.http_port, self.info,
                                  self.on_request, load_upload=self.load_upload)
         url = self.server.start()
@@ -168,7 +171,10 @@ class Web(Service):
             request = inbound.parse(data, users)
         except RejectedMessage as e:
             return self._reject(e, inbound.request_id(data))
-        topic = keys.ROBOT_STOP if request.kind == "stop" else keys.INTENT_FEEDBACK
+        if request.kind == "mapping":
+            return self._mapping_request(request)
+        topic = {"stop": keys.ROBOT_STOP, "feedback": keys.INTENT_FEEDBACK,
+                 "answer": keys.INTENT_ANSWER}[request.kind]
         ok = self.ctx.publish(topic, request.message)
         self.requests[request.kind] += 1
         if request.kind == "stop":
@@ -178,6 +184,32 @@ class Web(Service):
                   "key": self.ctx.keys.of(topic), "message": request.message,
                   "error": None if ok else "the message broke the contract; see the log"}
         return to_json("@reply", answer, time.time())
+
+    def _mapping_request(self, request: inbound.Request) -> str:
+        """Asks the intent service about a user's mapping on a thread of its own.
+
+        The intent service may be busy for seconds (a correction's refit); the page is answered
+        at once, and the mapping (or the error) follows on ``@mapping`` to every page.
+        """
+        assert self.ctx is not None
+        self.requests["mapping"] += 1
+        key = self.ctx.keys.ctl("intent", "mapping")
+        threading.Thread(target=self._ask_mapping, args=(request, key), name="web-mapping",
+                         daemon=True).start()
+        return to_json("@reply", {"ok": True, "id": request.id, "kind": "mapping", "key": key,
+                                  "message": request.message, "error": None}, time.time())
+
+    def _ask_mapping(self, request: inbound.Request, key: str) -> None:
+        assert self.ctx is not None
+        try:
+            replies = self.ctx.transport.get(key, wire.encode(request.message), MAPPING_TIMEOUT_S)
+            reply = client.pick_reply(replies, key, None, wire.DEFAULT_MAX_BYTES,
+                                      MAPPING_TIMEOUT_S, hint="is the intent service running?")
+            view = {**reply, "ok": True, "id": request.id, "op": request.message["op"]}
+        except QueryError as e:
+            view = {"ok": False, "id": request.id, "op": request.message["op"],
+                    "user": request.message["user"], "error": str(e)}
+        self._send("@mapping", view)
 
     def _reject(self, error: RejectedMessage, ident: int | None) -> str:
         assert self.ctx is not None

@@ -8,7 +8,7 @@ MANIFEST = Manifest(
     summary="a live web page of what cbgo sees and decides; STOP and feedback",
     order=5,
     subscribes=keys.DATA_TOPICS,
-    publishes=(keys.ROBOT_STOP, keys.INTENT_FEEDBACK),
+    publishes=(keys.ROBOT_STOP, keys.INTENT_FEEDBACK, keys.INTENT_ANSWER),
     asks=(keys.SIM_INFO,),
     service="cbgo.services.web.main:Web",
 )

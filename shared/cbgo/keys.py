@@ -85,6 +85,8 @@ SCENE_STATE = Topic("scene/state")
 INTENT = Topic("intent")
 INTENT_INFER = Topic("intent/infer", query=True)
 INTENT_FEEDBACK = Topic("intent/feedback")
+INTENT_CLARIFY = Topic("intent/clarify")
+INTENT_ANSWER = Topic("intent/answer")
 ROBOT_ACT = Topic("robot/act", query=True)
 ROBOT_STATE = Topic("robot/state", reliable=False)
 ROBOT_STOP = Topic("robot/stop", express=True)
@@ -97,7 +99,8 @@ TOPICS: dict[str, Topic] = {
     t.suffix: t
     for t in (
         HANDS_FRAME, GAZE, USER, GESTURES_STATIC, GESTURES_DYNAMIC, EPISODE_EVENT,
-        EPISODE_SUMMARY, SCENE_STATE, INTENT, INTENT_INFER, INTENT_FEEDBACK, ROBOT_ACT,
+        EPISODE_SUMMARY, SCENE_STATE, INTENT, INTENT_INFER, INTENT_FEEDBACK, INTENT_CLARIFY,
+        INTENT_ANSWER, ROBOT_ACT,
         ROBOT_STATE, ROBOT_STOP, PLAN_STATUS, SIM_RESET, SIM_RENDER, SIM_INFO,
     )
 }

@@ -259,9 +259,29 @@ INTENT = Obj({
     "p_object": MapOf(PROB), "confidence": PROB,
     "status": Str(("accepted", "low_confidence", "infeasible")), "reason": Str(nonempty=False),
     "model": Str(nonempty=False),
-})
+}, optional={"clarification": NAME})
 INTENT_FEEDBACK = Obj({"v": V, "ts": TS, "episode": Nullable(NAME), "user": NAME,
                        "action": NAME, "object": Nullable(NAME)})
+CLARIFY_STATES = ("open", "confirmed", "expired", "cancelled")
+CLARIFY_ANSWERS = ("confirm", "next", "previous", "cancel")
+MAX_CANDIDATES = 8
+
+
+def _highlight_is_a_candidate(value: dict) -> None:
+    if value["highlighted"] >= len(value["candidates"]):
+        raise RejectedMessage(f"expected the index of a candidate (0-"
+                              f"{len(value['candidates']) - 1}), got {value['highlighted']}",
+                              "highlighted")
+
+
+CANDIDATE = Obj({"action": Str(ACTIONS), "object": Nullable(NAME), "p": PROB})
+INTENT_CLARIFY = Obj({
+    "v": V, "ts": TS, "id": NAME, "episode": Nullable(NAME), "user": NAME,
+    "state": Str(CLARIFY_STATES), "candidates": ListOf(CANDIDATE, 1, MAX_CANDIDATES),
+    "highlighted": Int(lo=0), "expires": TS, "reason": Str(nonempty=False),
+}, rules=(_highlight_is_a_candidate,))
+INTENT_ANSWER = Obj({"v": V, "ts": TS, "id": NAME, "user": NAME,
+                     "answer": Str(CLARIFY_ANSWERS)}, optional={"choice": Int(lo=0)})
 
 ROBOT_ACT_QUERY = Obj({"v": V, "action": NAME, "object": Nullable(NAME), "params": PARAMS})
 ROBOT_ACT_REPLY = Obj(
@@ -328,6 +348,7 @@ SCHEMAS: dict[str, Spec | None] = {
     "gestures/static": GESTURES_STATIC, "gestures/dynamic": GESTURES_DYNAMIC,
     "episode/event": EPISODE_EVENT, "episode/summary": EPISODE_SUMMARY,
     "scene/state": SCENE_STATE, "intent": INTENT, "intent/feedback": INTENT_FEEDBACK,
+    "intent/clarify": INTENT_CLARIFY, "intent/answer": INTENT_ANSWER,
     "robot/state": ROBOT_STATE, "robot/stop": None, "plan/status": PLAN_STATUS,
 }
 QUERY_SCHEMAS: dict[str, Spec] = {

@@ -27,7 +27,7 @@ from cbgo.testing import free_port
 
 PNG = b"\x89PNG\r\n\x1a\n"
 STORY = [("accepted", "pick_up", "cup1"), ("accepted", "pour", "cup2"),
-         ("accepted", "put_into", "drawer1"), ("low_confidence", None, None),
+         ("accepted", "put_into", "drawer1"), ("accepted", "pick_up", "box1"),
          ("accepted", "pick_up", "cup2"), ("accepted", "move_left", None),
          ("accepted", "move_right", None)]
 
@@ -53,7 +53,10 @@ def check_story(done, result):
     put_into = result["steps"][2]["plan"]["sequence"]
     assert ["open", "drawer1", "done"] in put_into  # the tree repaired the closed drawer
     assert put_into[-1] == ["put_into", "drawer1", "done"]
-    assert result["steps"][3]["plan"] is None  # the ambiguous episode moved nothing
+    asked = result["steps"][3]  # the ambiguous grab, asked back and confirmed by gestures
+    assert asked["question"]["state"] == "open" and len(asked["question"]["candidates"]) > 1
+    assert asked["intent"]["clarification"] == asked["question"]["id"]
+    assert asked["answers"] and asked["plan"]["state"] == "success"
 
 
 def check_recording(out, result):
@@ -63,7 +66,8 @@ def check_recording(out, result):
     assert episodes <= {i["episode"] for i in intents}
     assert {m.key for m in messages} >= {"cbgo/hands/frame", "cbgo/gestures/static",
                                          "cbgo/gestures/dynamic", "cbgo/episode/summary",
-                                         "cbgo/plan/status", "cbgo/scene/state"}
+                                         "cbgo/plan/status", "cbgo/scene/state",
+                                         "cbgo/intent/clarify"}
     assert (out / "episode.png").read_bytes().startswith(PNG)
     timeline = (out / "timeline.txt").read_text()
     assert "intent accepted: put_into(drawer1)" in timeline

@@ -20,6 +20,7 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -359,3 +360,93 @@ def test_a_recording_opened_from_the_live_page_replays_in_it(system, browser):
     expect(page.locator("[data-testid=intent]")).not_to_contain_text("pick_up(cup1)")
     page.close()
     assert not errors, errors
+
+
+def grab_without_a_look(episode: str, gesture: str = "grab", user: str = "ann") -> dict:
+    return example("episode/summary", episode=episode, user=user, focus=None,
+                   focus_source=None, params={},
+                   gestures={"names": [gesture], "probs": [0.95]}, triggers=[])
+
+
+def test_a_clarification_is_listed_and_confirmed_by_a_click_or_a_gesture_and_run(page, system):
+    stack, _, _, _ = system
+    asked, plans = stack.collect("intent/clarify"), stack.collect("plan/status")
+    panel = page.locator("[data-testid=clarify]")
+    # a grab without a look: the intent service asks back which object was meant
+    stack.put("episode/summary", grab_without_a_look("ep-web-ask-1"))
+    question = asked.first(lambda m: m["episode"] == "ep-web-ask-1", timeout=30)
+    assert question["state"] == "open" and len(question["candidates"]) >= 2
+    expect(panel).to_contain_text("which one did you mean", timeout=20000)
+    first = question["candidates"][0]
+    expect(panel.locator("[data-testid=clarify-candidate-0]")).to_contain_text(
+        f"{first['action']}({first['object'] or ''})")
+    shot(page, "live-clarification")
+    chosen = question["candidates"][1]
+    panel.locator("[data-testid=clarify-candidate-1]").click()
+    expect(panel.locator("#clarify-result")).to_contain_text("sent to cbgo/intent/answer")
+    run = plans.first(lambda m: m["intent"].get("clarification") == question["id"], timeout=30)
+    assert (run["intent"]["action"], run["intent"]["object"]) == (chosen["action"],
+                                                                  chosen["object"])
+    expect(panel).to_contain_text("confirmed", timeout=20000)
+    # the same question answered by a gesture: a thumbs-up confirms the highlighted candidate
+    # (asked of another user: ann's confirmed answer taught her model what her grab means)
+    stack.put("episode/summary", grab_without_a_look("ep-web-ask-2", user="bea"))
+    second = asked.first(lambda m: m["episode"] == "ep-web-ask-2", timeout=30)
+    expect(panel).to_contain_text("which one did you mean", timeout=20000)
+    stack.put("episode/summary", grab_without_a_look("ep-web-answer", "thumbsup", "bea"))
+    run = plans.first(lambda m: m["intent"].get("clarification") == second["id"], timeout=30)
+    highlighted = second["candidates"][second["highlighted"]]
+    assert (run["intent"]["action"], run["intent"]["object"]) == (highlighted["action"],
+                                                                  highlighted["object"])
+    assert not page.errors, page.errors
+
+
+def mapping_of(stack, user: str) -> dict:
+    (ok, reply), = stack.query("cbgo/@ctl/intent/mapping", {"user": user}, timeout=10)
+    assert ok, reply
+    return reply
+
+
+def refitted(stack, user: str, timeout: float) -> dict:
+    """Asks the intent service until the user's refit is in use; returns its mapping."""
+    deadline = time.monotonic() + timeout
+    while (reply := mapping_of(stack, user))["refitting"]:
+        assert time.monotonic() < deadline, f"{user}'s refit still running after {timeout} s"
+        time.sleep(0.5)
+    return reply
+
+
+def test_the_mapping_table_shows_sets_and_unsets_a_users_rules(page, system):
+    stack, _, _, work = system
+    panel = page.locator("[data-testid=mapping]")
+    panel.locator("[data-testid=mapping-user]").fill("cleo")
+    panel.locator("[data-testid=mapping-show]").click()
+    expect(panel.locator("[data-testid=mapping-table]")).to_contain_text("no rules",
+                                                                         timeout=20000)
+    panel.locator("[data-testid=mapping-gesture]").select_option("thumbsup")
+    panel.locator("[data-testid=mapping-action]").select_option("pour")
+    panel.locator("[data-testid=mapping-on]").select_option("cup")
+    panel.locator("[data-testid=mapping-set]").click()
+    expect(panel.locator("[data-testid=mapping-rule-0]")).to_contain_text("pour", timeout=20000)
+    expect(panel.locator("[data-testid=mapping-result]")).to_contain_text("set: written to")
+    path = work / "data" / "intent" / "cleo" / "mapping.yaml"
+    assert "thumbsup" in path.read_text() and "pour" in path.read_text()
+    # the intent service refits cleo's model on its worker thread, then serves it
+    assert refitted(stack, "cleo", 240)["in_use"] == [{"gesture": "thumbsup", "action": "pour",
+                                                       "on": "cup"}]
+    panel.locator("[data-testid=mapping-show]").click()
+    expect(panel.locator("[data-testid=mapping-state]")).to_contain_text("in use", timeout=20000)
+    shot(page, "live-mapping")
+    # a rule the intent service refuses: the reason is shown, the table stays as it was
+    panel.locator("[data-testid=mapping-gesture]").select_option("grab")
+    panel.locator("[data-testid=mapping-action]").select_option("open")
+    panel.locator("[data-testid=mapping-on]").select_option("cup")
+    panel.locator("[data-testid=mapping-set]").click()
+    expect(panel.locator("[data-testid=mapping-result]")).to_contain_text(
+        "open never applies to a cup", timeout=20000)
+    expect(panel.locator("[data-testid=mapping-rule-0]")).to_contain_text("thumbsup")
+    panel.locator("[data-testid=mapping-unset-0]").click()
+    expect(panel.locator("[data-testid=mapping-table]")).to_contain_text("no rules",
+                                                                         timeout=20000)
+    assert "rules: []" in path.read_text()
+    assert not page.errors, page.errors

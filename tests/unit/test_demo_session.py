@@ -27,9 +27,11 @@ def test_the_bundled_session_tells_the_papers_story():
                 for s in session.steps]
     assert expected == [
         ("user1", "accepted", "pick_up", "cup1"), ("user1", "accepted", "pour", "cup2"),
-        ("user1", "accepted", "put_into", "drawer1"), ("user1", "low_confidence", None, None),
+        ("user1", "accepted", "put_into", "drawer1"), ("user1", "accepted", "pick_up", "box1"),
         ("user2", "accepted", "pick_up", "cup2"), ("user2", "accepted", "move_left", None),
         ("user1", "accepted", "move_right", None)]
+    # only the grab without a look must be asked back (and answered) first
+    assert [s.ask for s in session.steps] == [False, False, False, True, False, False, False]
     drawer = next(o for o in session.scene["objects"] if o["name"] == "drawer1")
     assert drawer["open"] is False  # the tree must open it
     # user2 makes the very gesture user1 makes for the opposite move
@@ -42,7 +44,8 @@ def test_the_scripted_goals_hold_on_the_world_model_executing_the_story():
     world.settle()
     plans = [[("pick_up", "cup1")], [("pour", "cup2")],
              [("place", None), ("open", "drawer1"), ("pick_up", "cup1"),
-              ("put_into", "drawer1")], [], [("pick_up", "cup2")], [("move_left", None)],
+              ("put_into", "drawer1")], [("pick_up", "box1")],
+             [("place", None), ("pick_up", "cup2")], [("move_left", None)],
              [("move_right", None)]]
     for step, plan in zip(session.steps, plans, strict=True):
         before = scene_message(world)
@@ -111,3 +114,15 @@ def test_fault_schedules():
         parse_faults("planner@9", 7)
     with pytest.raises(ValueError, match="phase must be"):
         parse_faults("planner@1:later", 7)
+
+
+@pytest.mark.parametrize("ask, expect, problem", [
+    ("yes", {"status": "accepted", "action": "pick_up", "object": "box1"},
+     "ask: expected true or false"),
+    (True, {"status": "low_confidence"}, "a question is answered with the expected intent"),
+])
+def test_a_step_that_must_be_asked_back_is_checked(ask, expect, problem):
+    data = paper_data()
+    data["steps"][3] = {**data["steps"][3], "ask": ask, "expect": expect}
+    with pytest.raises(ConfigError, match=problem):
+        parse_session(data)

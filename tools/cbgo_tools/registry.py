@@ -27,6 +27,12 @@ BENCHES: dict[str, tuple[str, str]] = {
     "intent-check": ("cbgo_tools.intent.evaluate",
                      "an intent model on fresh D4 draws, repairable intents and the demo's "
                      "decisions"),
+    "intent-clarify": ("cbgo_tools.intent.clarify_bench",
+                       "asking back vs refusing vs acting on the argmax on D4/D5: intended "
+                       "actions, wrong actions, share asked"),
+    "intent-mapping": ("cbgo_tools.intent.mapping_bench",
+                       "a stated gesture mapping vs learning it from corrections, on D4 users "
+                       "with swapped meanings"),
     "sim": ("cbgo_tools.mujoco_sim.bench", "mujoco-sim: success and speed of every action"),
     "web": ("cbgo_tools.web.bench", "web's CPU share under 120 Hz hands, page rates"),
     "camera": ("cbgo_tools.camera.bench",
@@ -53,7 +59,8 @@ FIGURES: dict[str, tuple[str, str]] = {
 # Which service each benchmark and trainer measures or trains (`cbgo up --list` shows them).
 SERVICE_OF: dict[str, str] = {
     "bridge": "leap-bridge", "static": "static-gesture", "dynamic": "dynamic-gesture",
-    "episode": "episode", "intent": "intent", "intent-check": "intent", "sim": "mujoco-sim",
+    "episode": "episode", "intent": "intent", "intent-check": "intent",
+    "intent-clarify": "intent", "intent-mapping": "intent", "sim": "mujoco-sim",
     "web": "web", "camera": "camera-bridge",
 }
 

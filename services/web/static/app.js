@@ -23,7 +23,8 @@ const call = (i) => `${i.action ?? "—"}(${i.object ?? ""})`;
 function emptyStore() {
   return { hands: null, scene: null, intentScene: null, robot: null, gaze: null, user: null, plan: null,
     intent: null, services: null, stop: null, staticP: [], dynamicP: [], evidence: [],
-    events: [], summaries: [], intents: [], feedback: [], now: 0, dirty: new Set(["all"]) };
+    clarify: null, mapping: null, events: [], summaries: [], intents: [], feedback: [], now: 0,
+    dirty: new Set(["all"]) };
 }
 
 let store = emptyStore();
@@ -54,6 +55,7 @@ function apply(topic, msg, t) {
     "plan/status": () => { store.plan = msg; },
     "robot/stop": () => { store.stop = { ts, reason: msg.reason }; },
     "intent/feedback": () => { store.feedback.push(msg); store.feedback = store.feedback.slice(-10); },
+    "intent/clarify": () => { store.clarify = msg; },
     // The scene the intent was inferred on: the why-line measures against it, not against a
     // world the plan has changed since (a picked-up cup is no longer where the user looked).
     "intent": () => { store.intent = msg; store.intentScene = store.scene; store.intents.push(msg); store.intents = store.intents.slice(-20); },
@@ -65,6 +67,7 @@ function apply(topic, msg, t) {
     "@services": () => { store.services = msg; },
     "@workspace": () => { workspace = msg; sceneView?.setWorkspace(msg.workspace); },
     "@reply": () => answered(msg),
+    "@mapping": () => mappingAnswered(msg),
   };
   (handlers[topic] || (() => {}))();
   store.dirty.add(topic);
@@ -337,6 +340,114 @@ function drawFeedback() {
   }
 }
 
+// --------------------------------------------------------------------- asked back
+
+// The open clarification's highlighted candidate is the scene's target; a closed one shows
+// what became of it (confirmed, expired, cancelled).
+let clarifySent = null;  // the page's last answer: {id, ok, text}
+
+function asking() { return store.clarify?.state === "open" ? store.clarify : null; }
+
+function sceneTarget() {
+  const c = asking();
+  return c ? c.candidates[c.highlighted]?.object ?? null : store.intent?.object;
+}
+
+function drawClarify() {
+  const c = store.clarify;
+  if (!c) return placeholder("clarify-body", "no question open");
+  const open = c.state === "open";
+  $("clarify-body").className = "";
+  const left = Math.max(0, c.expires - Date.now() / 1000);
+  const sent = clarifySent?.id === c.id ? clarifySent : null;  // kept across redraws
+  $("clarify-body").innerHTML = `
+    <div data-testid="clarify-state">${esc(c.user)}: ${open ? `which one did you mean? (${left.toFixed(0)} s)` : esc(c.state)}
+      <span class="muted">${esc(c.reason)}</span></div>
+    <ol class="candidates">${c.candidates.map((k, n) => `<li>
+      <button data-testid="clarify-candidate-${n}" data-n="${n}" ${open && live ? "" : "disabled"}
+        class="${n === c.highlighted ? "highlighted" : ""}">${esc(k.action)}(${esc(k.object ?? "")})</button>
+      ${pct(k.p)}${n === c.highlighted ? " ← thumbs-up confirms; a swipe steps" : ""}</li>`).join("")}</ol>
+    <div id="clarify-result" class="${sent?.ok === false ? "err" : "muted"}">${esc(sent?.text ?? (open ? "a click confirms (publishes cbgo/intent/answer)" : ""))}</div>`;
+  for (const button of $("clarify-body").querySelectorAll("button[data-n]")) {
+    button.onclick = () => answerClarification(c, Number(button.dataset.n));
+  }
+}
+
+function answerClarification(c, choice) {
+  request({ type: "answer", clarification: c.id, user: c.user, answer: "confirm", choice }, (a) => {
+    clarifySent = { id: c.id, ok: a.ok, text: a.ok ? `sent to ${a.key}: confirm ${choice}` : `not sent: ${a.error}` };
+    store.dirty.add("intent/clarify");
+  });
+}
+
+// --------------------------------------------------------------------- gesture mapping
+
+// A user's own mapping, asked of the intent service (which owns the user's mapping.yaml and
+// validates every rule): the table shows the rules, "set" adds or replaces one, "unset"
+// removes one. The answer comes back on @mapping, to every page.
+let mappingUser = null;  // whose mapping is shown: the current user until one is typed
+let mappingNote = null;  // what became of the page's last mapping request: {ok, text}
+let mappingDrawnFor = null;  // the user the panel was last drawn for
+
+function askMapping(extra) {
+  const user = ($("map-user")?.value ?? "").trim() || mappingUser || store.user;
+  if (!user) { mappingNote = { ok: false, text: "no user yet: type a name" }; store.dirty.add("@mapping"); return; }
+  mappingUser = user;
+  request({ type: "mapping", user, op: "show", ...extra }, (a) => {
+    mappingNote = a.ok ? { ok: true, text: `asked ${a.key}…` } : { ok: false, text: `not sent: ${a.error}` };
+    store.dirty.add("@mapping");
+  });
+}
+
+function mappingAnswered(msg) {
+  if (msg.user !== mappingUser) return;
+  if (msg.ok) store.mapping = msg;  // a refused edit keeps the table as it was
+  mappingNote = !msg.ok ? { ok: false, text: msg.error }
+    : { ok: true, text: msg.op === "show" ? `from ${msg.path}` : `${msg.op}: written to ${msg.path}` };
+}
+
+function mappingState(m) {
+  if (!m?.ok) return "";
+  if (m.error) return `<span class="err">the file does not load (${esc(m.error)}); the mapping in use stays</span>`;
+  return m.refitting ? "refitting the user's model (about 10 s)…" : "in use";
+}
+
+function drawMapping() {
+  const user = mappingUser ?? store.user ?? "";  // none yet: a name can be typed
+  mappingDrawnFor = store.user;
+  const m = store.mapping?.ok && store.mapping.user === user ? store.mapping : null;
+  const canEdit = info.mode === "live";
+  const options = (list, blank) => (blank ? `<option value="">${blank}</option>` : "")
+    + (list || []).map((v) => `<option>${esc(v)}</option>`).join("");
+  const types = Object.keys(m?.known?.states || {});
+  const states = [...new Set(Object.values(m?.known?.states || {}).flat())];
+  const rows = (m?.rules || []).map((r, n) => `<tr data-testid="mapping-rule-${n}"><td>${esc(r.gesture)}</td>
+    <td>${esc(r.action)}</td><td>${esc(r.on ?? "any")}</td><td>${esc(r.state ?? "either")}</td>
+    <td><button data-unset="${n}" data-testid="mapping-unset-${n}" ${canEdit ? "" : "disabled"}>unset</button></td></tr>`).join("");
+  $("mapping-body").className = "";
+  $("mapping-body").innerHTML = `
+    <div class="row">user <input id="map-user" data-testid="mapping-user" value="${esc(user)}" size="10">
+      <button id="map-show" data-testid="mapping-show" ${canEdit ? "" : "disabled"}>show</button>
+      <span data-testid="mapping-state">${mappingState(m)}</span></div>
+    ${m ? `<table data-testid="mapping-table"><tr><th>gesture</th><th>means</th><th>on</th><th>state</th><th></th></tr>
+      ${rows || `<tr><td colspan="5" class="muted">no rules: the model's default reading</td></tr>`}</table>
+    <div class="row"><select id="map-gesture" data-testid="mapping-gesture">${options(m.known.gestures)}</select> means
+      <select id="map-action" data-testid="mapping-action">${options(m.known.actions)}</select> on
+      <select id="map-on" data-testid="mapping-on">${options(types, "any")}</select>
+      <select id="map-state" data-testid="mapping-in-state">${options(states, "either")}</select>
+      <button id="map-set" data-testid="mapping-set" ${canEdit ? "" : "disabled"}>set</button></div>` : ""}
+    <div id="map-result" data-testid="mapping-result" class="${mappingNote?.ok === false ? "err" : "muted"}">${esc(
+      mappingNote?.text ?? "asks the intent service (@ctl/intent/mapping), which writes the user's mapping.yaml")}</div>`;
+  $("map-show").onclick = () => askMapping({});
+  if (!m) return;
+  $("map-set").onclick = () => askMapping({ op: "set", gesture: $("map-gesture").value,
+    action: $("map-action").value, on: $("map-on").value || null, state: $("map-state").value || null });
+  for (const button of $("mapping-body").querySelectorAll("button[data-unset]")) {
+    const rule = m.rules[Number(button.dataset.unset)];
+    button.onclick = () => askMapping({ op: "unset", gesture: rule.gesture, on: rule.on ?? null, state: rule.state ?? null });
+  }
+}
+
 function request(body, onAnswer) {
   if (!socket || socket.readyState !== WebSocket.OPEN) {
     onAnswer({ ok: false, error: "not connected to the web service" });
@@ -473,7 +584,7 @@ function draw(now) {
   store.dirty = new Set();
   trim();
   if (sceneView) {
-    sceneView.setObjects(store.scene, store.intent?.object);
+    sceneView.setObjects(store.scene, sceneTarget());
     if (any("hands/frame", "robot/state", "gaze", "scene/state", "episode/summary"))
       sceneView.setDynamic({ hands: store.hands, robot: store.robot, scene: store.scene, gaze: store.gaze,
         focus: focus(), pointing: pointing() });
@@ -481,6 +592,9 @@ function draw(now) {
   }
   if (any("intent", "episode/summary", "scene/state")) drawIntent();
   if (any("intent", "episode/summary")) drawFeedback();  // not on scenes: keep the user's choice
+  if (any("intent/clarify")) drawClarify();
+  // cbgo/user repeats: redraw (and lose what is typed) only when the user shown changes
+  if (any("@mapping") || (any("user") && mappingUser === null && store.user !== mappingDrawnFor)) drawMapping();
   if (any("plan/status", "robot/state", "scene/state", "robot/stop", "@services")) drawPlan();
   if (any("@services")) drawServices();
   if (now - lastCharts > 100) {  // the charts move with time: 10 redraws a second are plenty

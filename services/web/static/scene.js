@@ -1,5 +1,6 @@
 // The 3D scene in the robot base frame (metres, +z up; the user stands at +x facing -x):
-// workspace grid, table area, objects, TCP and gripper, hand skeletons (already in the base
+// workspace grid, table area, objects, the arm (its links posed by robot/state's joints:
+// `pandaLinkPoints`), TCP and gripper, hand skeletons (already in the base
 // frame: the server applies each frame's to_base), gaze point, episode focus, pointing ray,
 // and the intent's target highlighted. Labels are HTML over the canvas, laid out after each
 // render so that no two overlap (`layOutLabels`).
@@ -9,6 +10,14 @@ import { OrbitControls } from "three/addons/OrbitControls.js";
 const HAND_COLOURS = { left: 0x39c5cf, right: 0xf778ba };
 const OBJECT_COLOURS = { cup: 0x58a6ff, box: 0xd29922, drawer: 0x8b949e };
 const TARGET = 0xffe066;
+// The Panda / FR3 kinematics: Craig's modified DH parameters (a, d, alpha) of joints 1..7, m
+// and rad (Franka's documentation), then the flange 0.107 m and the Franka Hand's TCP 0.1034 m
+// further along joint 7's axis. cbgo.foxglove.arm holds the same table for Foxglove.
+const PANDA_DH = [[0, 0.333, 0], [0, 0, -Math.PI / 2], [0, 0.316, Math.PI / 2],
+  [0.0825, 0, Math.PI / 2], [-0.0825, 0.384, -Math.PI / 2], [0, 0, Math.PI / 2],
+  [0.088, 0, Math.PI / 2]];
+const FLANGE_D = 0.107, HAND_TCP_D = 0.1034;
+const LINK_RADIUS = 0.03, JOINT_RADIUS = 0.04;  // m: simple geometry, no meshes
 
 export class SceneView {
   // canvas: the WebGL canvas; labelLayer: an element stacked over it, of the same size.
@@ -88,7 +97,11 @@ export class SceneView {
     release(this.dynamic);
     this.changed = true;
     const tcp = s.robot?.tcp || s.scene?.robot?.tcp;
-    if (tcp) this.addGripper(tcp, s.robot?.gripper_width ?? (s.scene?.robot?.gripper_open ? 0.08 : 0.0));
+    const joints = s.robot?.joints;
+    if (joints?.length === 7) this.addArm(joints, s.robot.kinematics === false);
+    else delete this.canvas.dataset.arm;
+    if (tcp) this.addGripper(tcp, s.robot?.gripper_width ?? (s.scene?.robot?.gripper_open ? 0.08 : 0.0),
+      joints?.length !== 7);
     for (const hand of s.hands?.hands || []) this.addHand(hand, s.pointing);
     if (s.gaze) {
       this.dynamic.add(sphere(s.gaze.point, 0.012, 0xff7b72));
@@ -102,10 +115,34 @@ export class SceneView {
     }
   }
 
-  addGripper(tcp, width) {
+  // The arm's links between its joint frames, posed by the measured joints. A robot without
+  // kinematics (dry-robot, franka's dry run: `kinematics: false`) publishes the ready posture:
+  // drawn faded and labelled nominal. The canvas's data-arm says what was drawn (for tests).
+  addArm(joints, nominal) {
+    const points = pandaLinkPoints(joints);
+    const material = () => new THREE.MeshStandardMaterial({ color: 0xd0d4da, metalness: 0.2,
+      transparent: nominal, opacity: nominal ? 0.3 : 1.0 });
+    for (let i = 1; i < points.length; i++) {
+      const link = cylinderBetween(points[i - 1], points[i], LINK_RADIUS, material());
+      if (link) this.dynamic.add(link);
+    }
+    for (const p of points.slice(1, -1)) {
+      const ball = new THREE.Mesh(new THREE.SphereGeometry(JOINT_RADIUS, 16, 12), material());
+      ball.position.set(...p);
+      this.dynamic.add(ball);
+    }
+    if (nominal) this.dynamic.add(label("arm: nominal pose (no kinematics)", add(points[5], [0, 0, 0.08]), "#8893a2"));
+    this.canvas.dataset.arm = JSON.stringify({ pose: nominal ? "nominal" : "measured",
+      tcp: points.at(-1).map((v) => Math.round(v * 1e4) / 1e4), links: points.length - 1 });
+  }
+
+  // The TCP and the fingers; `line`: a line from the base stands for an arm not drawn.
+  addGripper(tcp, width, line = true) {
     const metal = new THREE.MeshStandardMaterial({ color: 0xeeeeee, metalness: 0.3 });
-    this.dynamic.add(segments([[0, 0, 0.06], [0, 0, 0.33], [0, 0, 0.33], [tcp[0], tcp[1], tcp[2] + 0.1],
-      [tcp[0], tcp[1], tcp[2] + 0.1], tcp], 0x6e7681));
+    if (line) {
+      this.dynamic.add(segments([[0, 0, 0.06], [0, 0, 0.33], [0, 0, 0.33], [tcp[0], tcp[1], tcp[2] + 0.1],
+        [tcp[0], tcp[1], tcp[2] + 0.1], tcp], 0x6e7681));
+    }
     const half = Math.max(0.004, Math.min(width, 0.08) / 2);
     for (const side of [-1, 1]) {
       const finger = new THREE.Mesh(new THREE.BoxGeometry(0.01, 0.008, 0.04), metal);
@@ -246,6 +283,35 @@ function release(group) {
 }
 
 function add(a, b) { return [a[0] + b[0], a[1] + b[1], a[2] + b[2]]; }
+
+// The base, the origins of joint frames 1..7, the flange and the TCP, in the base frame (m):
+// each joint's frame is Rx(alpha) Tx(a) Rz(q) Tz(d) of the one before (modified DH).
+export function pandaLinkPoints(joints) {
+  let frame = new THREE.Matrix4();
+  const points = [[0, 0, 0]];
+  const along = (m, d) => new THREE.Vector3(0, 0, d).applyMatrix4(m).toArray();
+  PANDA_DH.forEach(([a, d, alpha], i) => {
+    const step = new THREE.Matrix4().makeRotationX(alpha)
+      .multiply(new THREE.Matrix4().makeTranslation(a, 0, 0))
+      .multiply(new THREE.Matrix4().makeRotationZ(joints[i]))
+      .multiply(new THREE.Matrix4().makeTranslation(0, 0, d));
+    frame = frame.multiply(step);
+    points.push(along(frame, 0));
+  });
+  points.push(along(frame, FLANGE_D), along(frame, FLANGE_D + HAND_TCP_D));
+  return points;
+}
+
+// A cylinder from a to b (null where they coincide: joints 1-2 and 5-6 share an origin).
+function cylinderBetween(a, b, radius, material) {
+  const from = new THREE.Vector3(...a), dir = new THREE.Vector3(...b).sub(from);
+  const length = dir.length();
+  if (length < 1e-4) { material.dispose(); return null; }
+  const mesh = new THREE.Mesh(new THREE.CylinderGeometry(radius, radius, length, 16), material);
+  mesh.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), dir.clone().normalize());
+  mesh.position.copy(from.addScaledVector(dir, 0.5));
+  return mesh;
+}
 
 function sphere(p, r, colour) {
   const m = new THREE.Mesh(new THREE.SphereGeometry(r, 16, 12), new THREE.MeshBasicMaterial({ color: colour }));

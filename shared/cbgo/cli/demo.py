@@ -4,8 +4,10 @@
 world to the session's scene, and lets simulated users perform a scripted session (bundled:
 ``paper``): user1 picks up a full cup, pours it into an empty one, puts it into the closed
 drawer (the behaviour tree opens the drawer first), grabs without looking at anything (too
-ambiguous: refused as low confidence); user2, whose left and right are swapped, picks up the
-other cup and swipes right to move it left; user1 swipes right to move it back.
+ambiguous: the intent service asks back which object, user1 answers with a swipe to box1 and
+a thumbs-up, and the robot picks it up); user2, whose left and right are swapped, picks up the
+other cup and swipes right to move it left; user1 swipes right to move it back. Wherever the
+intent service asks back, the simulated user answers with the scripted intent.
 
 It prints a timeline (episode -> gestures -> intent with probabilities -> plan -> result) and
 writes an output folder: ``session.mcap`` (every data message of the session, for
@@ -14,7 +16,9 @@ world; dry-robot has none), ``episode.png`` (the paper's episode figure of one s
 ``timeline.txt``, ``result.json`` and ``services.log``. It exits with 1 if any step did not end
 as scripted, 2 on a usage or start-up error.
 
-``--robot dry`` swaps mujoco-sim for dry-robot (no physics, no MuJoCo needed). ``--faults all``
+``--robot dry`` swaps mujoco-sim for dry-robot (no physics, no MuJoCo needed); ``--robot franka
+--robot-ip IP`` for franka, a Franka Research 3 (or franky-sim, with the scene's objects in its
+world) at IP, on which the scene is declared, not built. ``--faults all``
 kills each service and the router once mid-session (SIGKILL) and reports how each came back;
 ``--no-start`` runs the session against services already running elsewhere (``--connect``);
 personal intent models of user1/user2 stored there (`cbgo feedback`) can change the outcomes,
@@ -24,6 +28,7 @@ Examples::
 
     cbgo demo                                  # MuJoCo robot, output in out/demo-<time>/
     cbgo demo --robot dry                      # the symbolic robot: fast, no physics
+    cbgo demo --robot franka --robot-ip 127.0.0.1   # franky-sim, or a real FR3's address
     cbgo demo --robot dry --faults all         # kill -9 every process once; recovery times
     cbgo demo --faults planner@1:plan,router@4:before
     cbgo demo --no-start --connect tcp/10.0.0.5:7447 --robot dry   # a deployed system
@@ -46,17 +51,22 @@ from cbgo.config import DEFAULT_ROUTER_LISTEN
 from cbgo.endpoints import check_can_listen, local_endpoint
 from cbgo.errors import ConfigError
 
-ROBOTS = {"mujoco": "mujoco-sim", "dry": "dry-robot"}
+ROBOTS = {"mujoco": "mujoco-sim", "dry": "dry-robot", "franka": "franka"}
 PIPELINE = ("leap-bridge", "static-gesture", "dynamic-gesture", "episode", "intent", "planner")
-PLAN_TIMEOUT_S = {"mujoco-sim": 240.0, "dry-robot": 30.0}
+PLAN_TIMEOUT_S = {"mujoco-sim": 240.0, "dry-robot": 30.0, "franka": 300.0}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds demo's flags."""
     parser.add_argument("--robot", choices=sorted(ROBOTS), default=None,
-                        help="which robot executes the plans: mujoco (mujoco-sim, physics) or "
-                             "dry (dry-robot, the symbolic world model) [mujoco; with "
-                             "--no-start, the one that is alive]")
+                        help="which robot executes the plans: mujoco (mujoco-sim, physics), "
+                             "dry (dry-robot, the symbolic world model) or franka (a Franka "
+                             "Research 3 at --robot-ip) [mujoco; with --no-start, the one that "
+                             "is alive]")
+    parser.add_argument("--robot-ip", default="", metavar="IP",
+                        help="with --robot franka: the arm's FCI address (franky-sim prints "
+                             "its 127.0.0.x); without it, franka plans and checks every action "
+                             "without moving (its dry run)")
     parser.add_argument("--session", default="paper", metavar="NAME|FILE",
                         help="the scripted session: a bundled name or a YAML file [paper]")
     parser.add_argument("-o", "--out", metavar="DIR",
@@ -74,7 +84,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ready-timeout", type=float, default=180.0, metavar="S",
                         help="how long the services may take to come up [180]")
     parser.add_argument("--plan-timeout", type=float, default=0.0, metavar="S",
-                        help="how long one plan may take [240 with mujoco, 30 with dry]")
+                        help="how long one plan may take [240 with mujoco, 30 with dry, 300 "
+                             "with franka]")
     parser.add_argument("--plot-step", type=int, default=1, metavar="N",
                         help="the step whose episode is drawn in episode.png [1]")
     add_network_arguments(parser)
@@ -108,6 +119,8 @@ def _start_system(args: argparse.Namespace, robot: str, out: Path) -> subprocess
         fail(str(e), 2)
     # Users' personal intent models (from earlier corrections) would change the outcomes.
     env = {**os.environ, "CBGO_DATA_DIR": str(out / "data")}
+    if args.robot_ip:
+        env["CBGO_ROBOT_IP"] = args.robot_ip
     argv = [sys.executable, "-m", "cbgo.cli.main", "up", "--no-color", "--router-listen",
             args.router_listen, "--connect", args.router_listen, *PIPELINE, robot]
     log = open(out / "services.log", "wb")  # noqa: SIM115 - the child owns it from here
@@ -177,6 +190,9 @@ def run(args: argparse.Namespace) -> int:
         print(text, flush=True)
         lines.append(text)
 
+    if args.robot_ip and (args.robot != "franka" or args.no_start):
+        fail("--robot-ip is franka's address: it goes with --robot franka, and only when the "
+             "demo starts the services (with --no-start, give it to the running franka)", 2)
     if args.faults and args.no_start:
         fail("--faults needs the demo to start the services itself (the kills go to local "
              "pids and `cbgo up` restarts them); drop --no-start", 2)
@@ -338,10 +354,12 @@ def _result_json(script, robot, results, recoveries, timing, plotted) -> dict:
                 "expect": vars(r.step.expect), "episode": r.episode,
                 "intent": {k: intent.get(k) for k in ("status", "action", "object",
                                                       "confidence", "reason", "p_action",
-                                                      "p_object")} if intent else None,
+                                                      "p_object", "clarification")}
+                if intent else None,
                 "plan": {"state": plan.get("state"), "error": plan.get("error"),
                          "sequence": [[s["action"], s["object"], s["state"]]
                                       for s in plan.get("sequence", [])]} if plan else None,
+                "question": r.question, "answers": r.answers,
                 "seconds": round(r.ended_at - r.started_at, 3)}
     return {"session": script.name, "robot": robot, **timing, "episode_figure": plotted,
             "steps": [step(r) for r in results],

@@ -42,6 +42,7 @@ VERBS = {
     "foxglove": ("foxglove", "serve the live traffic to Foxglove (WebSocket, 3D scene, log)"),
     "data": ("data", "real data sets (list, fetch, convert) and the paper's intent sets D1-D5"),
     "feedback": ("feedback", "correct the last intent (personalises the user's model)"),
+    "mapping": ("mapping", "say what your gestures mean: show, set or unset a user's mapping"),
     "gestures": ("gestures", "record a new gesture by demonstration and retrain"),
     "sim": ("sim", "talk to the simulator: snapshot, reset"),
     "plot": ("plot", "draw figures from recordings (the paper's episode figure)"),

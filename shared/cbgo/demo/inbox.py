@@ -18,7 +18,8 @@ from cbgo.errors import RejectedMessage
 from cbgo.keys import TOPICS, Keys
 from cbgo.recording import Recorder
 
-FOLLOWED = ("episode/event", "episode/summary", "intent", "plan/status", "scene/state", "user")
+FOLLOWED = ("episode/event", "episode/summary", "intent", "intent/clarify", "plan/status",
+            "scene/state", "user")
 
 
 @dataclass

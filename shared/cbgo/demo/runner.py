@@ -4,6 +4,9 @@ For each step the runner asks leap-bridge to play the step's episode (``@ctl/lea
 an inline scenario), then follows the system's own messages: the episode's events and summary,
 its intent, the plan it started and the world afterwards. A step passes when the intent is the
 scripted one, an accepted intent's plan succeeded, and the step's goal holds on the world.
+When the intent service asks back where the script expects an accepted intent, the simulated
+user answers truthfully, each answer an episode of its own: swipes right until the expected
+candidate is highlighted, then a thumbs-up (`Runner.answer`).
 
 With faults, the runner kills services (SIGKILL, by the pid in their status) at scheduled
 points, measures how long each takes to come back (liveliness token gone and back, the new
@@ -19,7 +22,7 @@ import os
 import signal
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from cbgo import client
 from cbgo import keys as K
@@ -34,6 +37,8 @@ SCENE_SETTLE_S = 0.3       # after a plan ends, the scene/state that follows it
 RECOVERY_TIMEOUT_S = 120.0
 PLAN_KILL_DELAY_S = 0.05   # a plan-phase kill hits this long into the plan's first action
 KILL_AT = 0.55             # when in an episode's playing time a gesture-phase kill hits
+NEXT, CONFIRM = "swipe_right", "thumbsup"  # the gestures that answer a question (intent's)
+ANSWER_SEED = 7919         # offsets the answers' simulated-user seeds from the steps'
 
 
 class DemoError(CbgoError):
@@ -84,6 +89,8 @@ class StepResult:
     summary: dict | None = None
     intent: dict | None = None
     plan: dict | None = None
+    question: dict | None = None  # the cbgo/intent/clarify that asked back, as opened
+    answers: list[str] = field(default_factory=list)  # the answering episodes
     scene_before: dict | None = None
     scene_after: dict | None = None
     lost: list[str] = field(default_factory=list)   # why earlier attempts were repeated
@@ -224,6 +231,16 @@ class Runner:
         result.intent = intent.message
         self.show_intent(intent)
         problems = []
+        asked_episode = result.episode
+        ident = intent.message.get("clarification")
+        if ident is not None and step.expect.status == "accepted":
+            answered, trouble = self.answer(step, result, ident)
+            problems += trouble
+            if answered is not None:
+                intent, result.intent = answered, answered.message
+                result.episode = answered.message["episode"]
+        elif step.ask:
+            problems.append("the intent was not asked back (no clarification)")
         mismatch = step.expect.mismatch(intent.message)
         if mismatch:
             problems.append(f"intent {mismatch}")
@@ -232,14 +249,74 @@ class Runner:
         else:
             problems += self.no_plan(mark, result.episode)
         self.wait_until(played_at + duration)  # the user's hand has left before the next step
+        own = {asked_episode, *result.answers}
         extra = [h.message["episode"] for h in self.inbox.since(mark, "episode/summary")
-                 if h.message["episode"] != result.episode]
+                 if h.message["episode"] not in own]
         if extra:
             problems.append(f"the step made more episodes than one: {', '.join(extra)}")
         result.scene_after = self.current_scene()
         if checkpoint is not None and result.scene_after is not None:
             problems += goal_failures(step.goal, checkpoint, result.scene_after)
         return problems
+
+    def answer(self, step: Step, result: StepResult, ident: str) -> tuple[Heard | None,
+                                                                         list[str]]:
+        """Answers the question `ident` with the step's expected intent; returns its intent.
+
+        The simulated user swipes right until the expected candidate is highlighted and
+        confirms it with a thumbs-up; returns the intent of the last answer and the problems.
+        """
+        question = self.inbox.wait(0, "intent/clarify",
+                                   lambda m: m["id"] == ident and m["state"] == "open",
+                                   INTENT_TIMEOUT_S)
+        if question is None:
+            return None, [f"the intent names clarification {ident}, which was never heard"]
+        result.question = q = question.message
+        offered = [(c["action"], c["object"]) for c in q["candidates"]]
+        self.say(f"{self._at(question.at)}  asked back: " + ", ".join(
+            f"{a}({o or ''}) p={c['p']:.2f}" for (a, o), c in zip(offered, q["candidates"],
+                                                                 strict=True))
+            + f"; highlighted {q['highlighted'] + 1}")
+        want = step.expect
+        index = next((i for i, (a, o) in enumerate(offered) if a == want.action and (
+            want.object is None or o == want.object)), None)
+        if index is None:
+            return None, [f"the intended {want.label()} is not among the candidates asked"]
+        gestures = [NEXT] * ((index - q["highlighted"]) % len(offered)) + [CONFIRM]
+        last = None
+        for n, gesture in enumerate(gestures):
+            last = self.play_answer(step, result, gesture, n)
+            if last is None:
+                return None, [f"the answer {gesture} got no episode or no intent"]
+        if last.message.get("clarification") != ident or last.message["status"] != "accepted":
+            return last, [f"the {CONFIRM} did not confirm clarification {ident}"]
+        return last, []
+
+    def play_answer(self, step: Step, result: StepResult, gesture: str,
+                    n: int) -> Heard | None:
+        """Plays one answering gesture as its own episode; returns its intent (None: lost)."""
+        mark = self.inbox.mark()
+        played_at = time.time()
+        scenario = replace(step, gestures=[gesture], gaze=None).scenario(
+            self.script.users, self.script.seed + ANSWER_SEED + 101 * result.index
+            + 11 * result.attempts + n, f"{self.script.name}-{result.index + 1}-answer{n + 1}")
+        self.say(f"{self.clock()}  {step.user} answers: {gesture}")
+        reply = self.query(self.keys.ctl("leap-bridge", "play"), scenario)
+        duration = float(reply.get("duration_s", 5.0))
+        summary = self.inbox.wait(mark, "episode/summary",
+                                  lambda m: m["started"] >= played_at - 0.5,
+                                  duration + EPISODE_MARGIN_S)
+        if summary is None:
+            return None
+        episode = summary.message["episode"]
+        result.answers.append(episode)
+        self.show_episode(mark, summary)
+        intent = self.inbox.wait(mark, "intent", lambda m: m["episode"] == episode,
+                                 INTENT_TIMEOUT_S)
+        if intent is not None:
+            self.show_intent(intent)
+        self.wait_until(played_at + duration)  # the hand has left before the next gesture
+        return intent
 
     def follow_plan(self, mark: int, index: int, result: StepResult) -> list[str]:
         """Waits for the plan of an accepted intent to end; returns problems."""

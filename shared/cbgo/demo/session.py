@@ -14,9 +14,14 @@ A session file (YAML or JSON; the bundled one is ``sessions/paper.yaml``)::
         gestures: [grab]         # as in scenario files (cbgo.simuser.scenario)
         expect: {status: accepted, action: pick_up, object: cup1}
         goal: {holding: cup1}    # what must be true of the world afterwards
+        ask: false               # true: the intent must be asked back first (see below)
 
 ``expect`` is checked against the episode's ``cbgo/intent`` (``status`` is required; ``action``
-and ``object`` when given). An accepted intent must also end in a successful plan. ``goal``
+and ``object`` when given). An accepted intent must also end in a successful plan. When the
+intent service asks back (``cbgo/intent/clarify``) where an accepted intent is expected, the
+simulated user answers truthfully with gestures: a swipe right steps the highlight to the
+expected candidate, a thumbs-up confirms it; the confirmed intent is then the step's.
+``ask: true`` requires that question (the step shows the asking back). ``goal``
 is checked on the world after the step:
 
 - ``holding: NAME | null``: what the gripper holds;
@@ -84,6 +89,7 @@ class Step:
     goal: dict[str, Any]
     gaze: str | list[float] | None = None
     pause_s: float = 0.8
+    ask: bool = False  # the intent must be asked back (and answered) before it is accepted
 
     def scenario(self, users: dict[str, Any], seed: int, name: str) -> dict[str, Any]:
         """Returns the inline scenario for ``@ctl/leap-bridge/play``: this step's episode."""
@@ -192,7 +198,7 @@ def parse_session(data: Any, source: str = "session") -> Session:
 def _step(data: Any, users: dict[str, Any], where: str) -> Step:
     if not isinstance(data, dict):
         raise ConfigError(f"{where}: expected a mapping")
-    _only(data, {"say", "user", "gaze", "gestures", "expect", "goal", "pause_s"}, where)
+    _only(data, {"say", "user", "gaze", "gestures", "expect", "goal", "pause_s", "ask"}, where)
     for required in ("user", "gestures", "expect", "goal"):
         if required not in data:
             raise ConfigError(f"{where}: missing {required!r}")
@@ -206,8 +212,14 @@ def _step(data: Any, users: dict[str, Any], where: str) -> Step:
         raise ConfigError(f"{where}.expect.status: {expect.get('status')!r} is not one of "
                           f"{', '.join(STATUSES)}")
     _check_goal(data["goal"], f"{where}.goal")
+    ask = data.get("ask", False)
+    if not isinstance(ask, bool):
+        raise ConfigError(f"{where}.ask: expected true or false, got {ask!r}")
+    if ask and (expect.get("status") != "accepted" or not expect.get("action")):
+        raise ConfigError(f"{where}.ask: a question is answered with the expected intent; "
+                          "give expect: {status: accepted, action: ..., object: ...}")
     return Step(str(data.get("say", "")), data["user"], list(data["gestures"]), Expect(**expect),
-                dict(data["goal"]), data.get("gaze"), float(data.get("pause_s", 0.8)))
+                dict(data["goal"]), data.get("gaze"), float(data.get("pause_s", 0.8)), ask)
 
 
 def _check_goal(goal: Any, where: str) -> None:

@@ -45,6 +45,7 @@ class Deriver:
     def __init__(self):
         self.frame: dict | None = None
         self.scene: dict | None = None
+        self.arm: dict | None = None  # the last robot/state: its joints pose the drawn arm
         self.target: str | None = None
         self._transform_key: tuple | None = None
         self._transform_ts = float("-inf")
@@ -74,14 +75,23 @@ class Deriver:
     def _on_scene_state(self, scene: dict) -> list[Derived]:
         self.scene = scene
         robot = scene["robot"]
+        tcp = self.arm["tcp"] if self.arm else robot["tcp"]
         return [_scene(scene["ts"], fx.objects_entity(scene, self.target),
-                       fx.robot_entity(scene["ts"], robot["tcp"], robot["gripper_open"],
-                                       robot["holding"]))]
+                       fx.robot_entity(scene["ts"], tcp, robot["gripper_open"],
+                                       robot["holding"], **self._joints()))]
 
     def _on_robot_state(self, state: dict) -> list[Derived]:
+        self.arm = state
         robot = self.scene["robot"] if self.scene else {"gripper_open": None, "holding": None}
         return [_scene(state["ts"], fx.robot_entity(state["ts"], state["tcp"],
-                                                    robot["gripper_open"], robot["holding"]))]
+                                                    robot["gripper_open"], robot["holding"],
+                                                    **self._joints()))]
+
+    def _joints(self) -> dict:
+        """The last robot/state's joints; nominal where it says it has no kinematics."""
+        if not self.arm:
+            return {}
+        return {"joints": self.arm["joints"], "nominal": self.arm.get("kinematics") is False}
 
     def _on_intent(self, intent: dict) -> list[Derived]:
         action, obj = intent["action"], intent["object"]

@@ -1,4 +1,4 @@
-"""Foxglove scene entities built from wire messages: hands, objects, the robot, the focus ray.
+"""Foxglove scene entities built from wire messages: hands, objects, the arm, the focus ray.
 
 Pure functions from decoded wire messages (plain dicts) to ``foxglove.SceneEntity`` dicts of
 Foxglove's JSON schema (``schemas/SceneUpdate.json``). Everything is drawn in the robot base
@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from cbgo import transform
+from cbgo.foxglove import arm
 from cbgo.world import drawer_direction
 
 BASE_FRAME = "base"
@@ -21,6 +22,8 @@ LINE_LIST = 2  # foxglove.LineType: each pair of points is one segment
 JOINT_M, TIP_M, PALM_M = 0.010, 0.013, 0.020  # sphere diameters of hand joints, tips, palm
 BONE_LINE_PX = 3.0  # bone thickness, screen pixels (scale invariant)
 TCP_M = 0.03
+LINK_M, JOINT_BALL_M = 0.05, 0.07  # the arm's link thickness and joint spheres, m
+ARM, ARM_NOMINAL = (0.85, 0.87, 0.9, 1.0), (0.85, 0.87, 0.9, 0.3)
 FOCUS_M = 0.025
 # Where a ray of gaze starts when nobody reports the eyes: the contract carries no head pose,
 # so a nominal eye point 0.45 m above the sensor and 0.30 m towards the user (Leap mm) is used;
@@ -161,17 +164,33 @@ def objects_entity(scene: dict, target: str | None) -> dict:
                   metadata={"target": target or "", "objects": len(scene["objects"])})
 
 
-def robot_entity(ts: float, tcp, gripper_open: bool | None, holding: str | None) -> dict:
-    """Returns the ``robot`` entity: the TCP as a sphere, a line from the base origin to it.
+def robot_entity(ts: float, tcp, gripper_open: bool | None, holding: str | None,
+                 joints=None, nominal: bool = False) -> dict:
+    """Returns the ``robot`` entity: the arm's links posed by its joints, and the TCP.
 
-    The sphere is green with the gripper open, red closed, grey while unknown (no scene yet).
+    The links run between the joint frames of the Panda/FR3 kinematics (`arm.link_points`),
+    drawn as lines `LINK_M` thick with a sphere at each joint. Without joints (no
+    ``robot/state`` yet) a thin line from the base to the TCP stands for the arm; ``nominal``
+    joints (``kinematics: false``: dry-robot or franka's dry run, which publish the ready
+    posture) are drawn faded and labelled so. The TCP sphere is green with the gripper open,
+    red closed, grey while unknown (no scene yet).
     """
     rgba = {True: TCP_OPEN, False: TCP_CLOSED}.get(gripper_open, TCP_UNKNOWN)
     label = "TCP" + (f" holding {holding}" if holding else "")
-    return entity("robot", ts, spheres=[sphere(tcp, TCP_M, rgba)],
-                  lines=[line_list([(0.0, 0.0, 0.0), tcp], (0.7, 0.7, 0.7, 0.6), 2.0)],
-                  texts=[text((tcp[0], tcp[1], tcp[2] + 0.05), label)],
-                  metadata={"holding": holding or ""})
+    spheres, texts = [sphere(tcp, TCP_M, rgba)], [text((tcp[0], tcp[1], tcp[2] + 0.05), label)]
+    if joints is None:
+        lines = [line_list([(0.0, 0.0, 0.0), tcp], (0.7, 0.7, 0.7, 0.6), 2.0)]
+    else:
+        points = arm.link_points(joints)
+        shade = ARM_NOMINAL if nominal else ARM
+        links = [p for pair in zip(points[:-1], points[1:], strict=True) for p in pair]
+        lines = [{**line_list(links, shade, LINK_M), "scale_invariant": False}]
+        spheres += [sphere(p, JOINT_BALL_M, shade) for p in points[1:-1]]
+        if nominal:
+            texts.append(text(points[-3], "arm: nominal pose (no kinematics)", ARM_NOMINAL))
+    return entity("robot", ts, spheres=spheres, lines=lines, texts=texts,
+                  metadata={"holding": holding or "", "joints": "nominal" if nominal else (
+                      "none" if joints is None else "measured")})
 
 
 def focus_entity(gaze: dict, origin, nominal: bool) -> dict:

@@ -12,10 +12,11 @@ from cbgo.services.franka.frames import (
     hand_rotation,
     quaternion_xyzw,
 )
-from cbgo.services.franka.main import grip_mismatch
+from cbgo.services.franka.main import grip_mismatch, seed_scene_in_hand
 from cbgo.services.franka.plan import (
     Grasp,
     Gripper,
+    Holding,
     Move,
     PlanRefused,
     handle_point,
@@ -87,11 +88,12 @@ def test_a_move_is_one_motion_to_the_world_model_s_goal_cell():
 def test_pick_up_comes_from_above_and_closes_on_the_object_s_size():
     plan = plan_action("pick_up", "box1", {}, scene())
     kinds = [type(s).__name__ for s in plan.steps]
-    assert kinds == ["Gripper", "Move", "Move", "Grasp", "Move"]
+    assert kinds == ["Gripper", "Move", "Move", "Grasp", "Move", "Holding"]
     assert plan.steps[0] == Gripper(pytest.approx(0.05 + 2 * 0.012))
     down = plan.steps[2]
     assert down.slow and down.position == pytest.approx((0.56, -0.06, 0.03))
     assert plan.steps[3] == Grasp(0.05, "box1")
+    assert plan.steps[5] == Holding(0.05, "box1")  # lifted: measured again, it may slip
     assert plan.after.robot.holding == "box1" and plan.touched == ["box1"]
     assert all(p[2] <= travel_z(scene(), None) + 1e-9 for p in plan.points())
 
@@ -117,6 +119,7 @@ def test_open_pulls_the_handle_by_the_tray_s_travel_and_close_pushes_it_back():
     assert grasp_at == pytest.approx(handle_point(scene(), "drawer1", opened=False))
     assert grasp_at[0] - pulled_to[0] == pytest.approx(0.818 * 0.11)
     assert plan.steps[grasp].what == "the handle of drawer1"
+    assert plan.steps[grasp + 2] == Holding(0.02, "the handle of drawer1")  # pulled, not slipped
     back = plan_action("close", "drawer1", {}, plan.after)
     grasp = next(i for i, s in enumerate(back.steps) if isinstance(s, Grasp))
     assert back.steps[grasp - 1].position == pytest.approx(pulled_to)
@@ -151,3 +154,12 @@ def test_a_declared_load_must_match_the_measured_finger_gap():
     assert grip_mismatch(held, 0.0595) is None
     assert "the fingers are 0.080 m apart" in grip_mismatch(held, 0.08)
     assert grip_mismatch(scene(), 0.08) is None
+
+
+def test_a_seeds_scene_drops_a_load_the_fingers_do_not_hold():
+    invented = scene(tcp=[0.44, 0.18, 0.26], gripper_open=False, holding="cup1")
+    kept = seed_scene_in_hand(invented, 0.06)  # the fingers hold something of cup1's size
+    assert kept.robot.holding == "cup1"
+    empty = seed_scene_in_hand(invented, 0.08)  # wide open: cup1 is not there
+    assert empty.robot.holding is None and not empty.has("cup1")
+    assert {o.name for o in empty.objects} == {"box1", "cup2", "drawer1"}

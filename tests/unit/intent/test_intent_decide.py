@@ -36,7 +36,7 @@ def test_the_best_feasible_pair_wins_over_a_more_probable_infeasible_one():
     joint = joint_of(scene, {("put_into", "drawer1"): 0.4, ("put_into", "drawer2"): 0.35,
                              ("pick_up", "cup1"): 0.25})
     d = decide(joint, scene.names, scene, DecisionConfig(min_confidence=0.3,
-                                                        accept_repairable=False))
+                                                        accept_repairable=False, clarify=False))
     assert (d.status, d.action, d.object) == ("accepted", "put_into", "drawer2")
     assert d.confidence == pytest.approx(0.35)
     assert abs(sum(d.p_action.values()) - 1) < 1e-9 and abs(sum(d.p_object.values()) - 1) < 1e-9
@@ -49,7 +49,8 @@ def test_a_confident_infeasible_request_is_infeasible_with_the_unmet_preconditio
                                                         accept_repairable=False))
     assert (d.status, d.action, d.object) == ("infeasible", None, None)
     assert "put_into(drawer1)" in d.reason and "drawer1 is closed" in d.reason
-    repaired = decide(joint, scene.names, scene, DecisionConfig(0.5, accept_repairable=True))
+    repaired = decide(joint, scene.names, scene, DecisionConfig(0.5, accept_repairable=True,
+                                                                clarify=False))
     assert (repaired.status, repaired.action, repaired.object) == ("accepted", "put_into",
                                                                    "drawer1")
     assert "planner repairs" in repaired.reason
@@ -59,9 +60,13 @@ def test_moves_and_place_are_scored_by_their_marginal_and_ignore_the_object():
     scene = scene_holding_box()
     joint = joint_of(scene, {("move_left", "cup1"): 0.2, ("move_left", "drawer1"): 0.2,
                              ("move_left", "drawer2"): 0.2, ("put_on", "drawer2"): 0.4})
-    d = decide(joint, scene.names, scene)
+    d = decide(joint, scene.names, scene, DecisionConfig(clarify=False))
     assert (d.status, d.action, d.object) == ("accepted", "move_left", None)
     assert d.confidence == pytest.approx(0.6) and d.p_action["move_left"] == pytest.approx(0.6)
+    # by default an intent below --ask-below is asked back, the same one offered first
+    asked = decide(joint, scene.names, scene)
+    assert (asked.status, asked.action) == ("clarify", None)
+    assert (asked.candidates[0].action, asked.candidates[0].object) == ("move_left", None)
 
 
 def test_an_uncertain_posterior_is_low_confidence_and_takes_no_action():
@@ -116,7 +121,8 @@ def test_the_batch_decision_agrees_with_the_one_by_one_decision():
     action, slot, confidence = decide_arrays(joint, ds.feasible, mask)
     for i, s in enumerate(items):
         n = len(s.scene.objects)
-        d = decide(joint[i, :n], s.scene.names, s.scene, DecisionConfig(min_confidence=0.0))
+        d = decide(joint[i, :n], s.scene.names, s.scene, DecisionConfig(min_confidence=0.0,
+                                                                         clarify=False))
         assert d.action == ACTIONS[action[i]]
         assert d.object == (s.scene.names[slot[i]] if slot[i] >= 0 else None)
         assert d.confidence == pytest.approx(confidence[i])

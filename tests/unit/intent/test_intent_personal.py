@@ -3,10 +3,14 @@
 import numpy as np
 
 from cbgo.services.intent import datasets
+from cbgo.services.intent.decide import DecisionConfig
 from cbgo.services.intent.engine import IntentEngine
 from cbgo.services.intent.personal import Correction, PersonalStore, personalise, safe_dirname
 from cbgo.wire import ACTIONS
 from cbgo.world import OBJECT_AGNOSTIC
+
+# what the user's model decides, without asking back below --ask-below
+UNASKED = DecisionConfig(ask_below=0.0)
 
 
 def ask(engine, sample, user):
@@ -28,7 +32,7 @@ def test_a_user_who_gestures_like_d3s_user2_is_learnt_from_a_handful_of_correcti
     # carol is new to the model (read as user1) but swaps left/right and uses five/point for
     # place and put_into, as D3's user2 does.
     store = PersonalStore(tmp_path, shipped)
-    engine = IntentEngine(shipped, personal=store)
+    engine = IntentEngine(shipped, UNASKED, personal=store)
     test = list(datasets.samples("D3", 100, seed=41, users=["user2"]))
     before = accuracy(engine, test, "carol")
     corrections = 0
@@ -71,12 +75,12 @@ def test_a_new_convention_is_learnt_by_fine_tuning_the_users_copy(shipped):
     personal = personalise(shipped, corrections, store.start_vector("dave"), store._replay_for,
                            steps=200)
     assert personal.stage == "finetuned"
-    engine = IntentEngine(personal.model)
+    engine = IntentEngine(personal.model, UNASKED)
     engine.user_model = lambda user: (personal.model, personal.user_vector, personal)
     assert accuracy(engine, picks[6:], "dave") >= 0.9
     usual = list(datasets.samples("D4", 80, seed=44, users=["user1"]))
     assert accuracy(engine, usual, "dave") >= 0.95
-    assert accuracy(IntentEngine(shipped), picks[6:], "dave") < 0.5
+    assert accuracy(IntentEngine(shipped, UNASKED), picks[6:], "dave") < 0.5
 
 
 def test_user_names_become_safe_folder_names():

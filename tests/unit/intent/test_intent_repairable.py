@@ -18,7 +18,9 @@ HALFWAY = [0.44, 0.0, 0.03]  # between the two cups of two_cups_scene
 
 @pytest.fixture(scope="module")
 def engine(shipped):
-    return IntentEngine(shipped, DecisionConfig(0.5, accept_repairable=True), None, 32)
+    # what the model decides (the service asks back below --ask-below first)
+    return IntentEngine(shipped, DecisionConfig(0.5, accept_repairable=True, ask_below=0.0),
+                        None, 32)
 
 
 def infer(engine, scene, user, gesture, looked_at):

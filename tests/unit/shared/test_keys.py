@@ -196,7 +196,8 @@ def test_hand_frames_are_dropped_under_congestion_and_sent_express():
 
 
 @pytest.mark.parametrize("suffix", ["episode/event", "episode/summary", "intent", "plan/status",
-                                    "robot/act", "intent/feedback", "scene/state", "user",
+                                    "robot/act", "intent/feedback", "intent/clarify",
+                                    "intent/answer", "scene/state", "user",
                                     "robot/stop", "intent/infer", "sim/reset", "sim/render",
                                     "sim/info"])
 def test_events_summaries_intents_plans_and_actions_are_reliable(suffix):
@@ -217,8 +218,8 @@ def test_a_stop_is_sent_express_and_reliably():
     assert keys.ROBOT_STOP.express and keys.ROBOT_STOP.reliable
 
 
-def test_the_topic_table_holds_the_eighteen_contract_keys_by_suffix():
-    assert len(keys.TOPICS) == 18
+def test_the_topic_table_holds_the_twenty_contract_keys_by_suffix():
+    assert len(keys.TOPICS) == 20
     assert all(suffix == topic.suffix for suffix, topic in keys.TOPICS.items())
 
 

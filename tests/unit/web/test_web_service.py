@@ -62,7 +62,8 @@ def test_stop_and_feedback_from_the_page_are_published_and_bad_requests_rejected
     assert bus.counters.rejected == 1
     ok, status = bus.query("status", None)
     assert ok and status["url"] == bus.service.server.url
-    assert status["requests"] == {"stop": 1, "feedback": 1, "rejected": 1}
+    assert status["requests"] == {"stop": 1, "feedback": 1, "answer": 0, "mapping": 0,
+                                  "rejected": 1}
     assert "teleport" in status["last_error"]["message"]
 
 
