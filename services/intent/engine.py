@@ -306,10 +306,12 @@ class IntentEngine:
                                 f"p={chosen.p:.2f})", intent["model"]),
                 "clarification": asked.id}
 
-    def learn_from(self, asked: Clarification) -> tuple[Correction, Personal] | None:
+    def learn_from(self, asked: Clarification) -> Correction | None:
         """Stores a confirmed answer as a correction of the user's model (None: not learnt).
 
-        The confirmed candidate is what the gesture meant, in the scene it was made in.
+        The confirmed candidate is what the gesture meant, in the scene it was made in. The
+        model is not refitted here: the service refits on its worker thread, so that the
+        next episode (often another user's) is not kept waiting for seconds.
         """
         if self.personal is None or asked.chosen is None:
             return None
@@ -319,4 +321,5 @@ class IntentEngine:
             gestures=record.gestures, scene=record.scene, focus=record.focus,
             params=record.params, context_object=chosen.object or record.context_object,
             episode=record.episode, predicted={"action": None, "object": None}, ts=time.time())
-        return correction, self.personal.add(correction)
+        self.personal.store(correction)
+        return correction

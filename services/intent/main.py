@@ -380,8 +380,9 @@ class Intent(Service):
         learnt = self.engine.learn_from(asked) if asked is not None else None
         if learnt is not None:
             self.feedback["stored"] += 1
-            self.ctx.log.info("confirmed %s(%s) learnt by %s (%s)", learnt[0].action,
-                              learnt[0].object, learnt[1].model.name, learnt[1].stage)
+            self.ctx.log.info("confirmed %s(%s) stored for %s; refitting on the worker thread",
+                              learnt.action, learnt.object, learnt.user)
+            self.refit_mapping(learnt.user, self.engine.personal.mapping(learnt.user))
 
     def on_clarify_clock(self) -> None:
         """Closes the clarifications whose time is up (nothing moves)."""

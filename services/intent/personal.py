@@ -291,6 +291,13 @@ class PersonalStore:
 
     def add(self, correction: Correction) -> Personal:
         """Stores a correction and refits that user's model; returns it."""
+        self.store(correction)
+        self._cache[correction.user] = self._update(correction.user,
+                                                    self.corrections(correction.user))
+        return self._cache[correction.user]
+
+    def store(self, correction: Correction) -> None:
+        """Stores a correction without refitting (the caller refits, e.g. on a worker thread)."""
         folder = self._dir(correction.user)
         if folder is None:
             self._memory.setdefault(correction.user, []).append(correction)
@@ -298,9 +305,6 @@ class PersonalStore:
             folder.mkdir(parents=True, exist_ok=True)
             with open(folder / "feedback.jsonl", "a") as f:
                 f.write(correction.to_json() + "\n")
-        self._cache[correction.user] = self._update(correction.user,
-                                                    self.corrections(correction.user))
-        return self._cache[correction.user]
 
     def mark_seen(self, user: str) -> None:
         """Notes the mapping file as read (a change written by the service is not polled again)."""
