@@ -268,7 +268,8 @@ def test_a_low_confidence_intent_can_be_confirmed_or_rejected_from_the_page(page
     for episode in ("ep-web-confirm", "ep-web-reject"):
         # The planner ignores low_confidence intents: nothing moves.
         stack.put("intent", low_confidence(episode))
-        expect(panel).to_contain_text(f"episode {episode}")
+        # the page redraws on its own clock; on a loaded machine that can take seconds
+        expect(panel).to_contain_text(f"episode {episode}", timeout=20_000)
         expect(panel).to_contain_text("did you mean pick_up(cup2)")
     shot(page, "live-low-confidence")
     panel.locator("[data-testid=feedback-reject]").click()
