@@ -119,7 +119,6 @@ class Franka(RobotCell):
         self.action: str | None = None
         self.state_seq = 0
         self.connects = 0
-        self._due = {"scene": 0.0, "robot": 0.0}
 
     def setup(self, ctx) -> None:
         """Connects (a dry run does not), declares the start scene, then the robot cell's keys."""
@@ -363,13 +362,7 @@ class Franka(RobotCell):
 
         The event loop is busy with the action, so its timers cannot fire.
         """
-        now = time.monotonic()
-        for kind, rate, topic, message in (
-                ("scene", self.settings.state_rate_hz, keys.SCENE_STATE, self.scene_message),
-                ("robot", self.settings.robot_rate_hz, keys.ROBOT_STATE, self.robot_message)):
-            if now >= self._due[kind]:
-                self._due[kind] = now + 1.0 / rate
-                self.ctx.publish(topic, message())
+        self.publish_due_states()
 
 
 def seed_scene_in_hand(scene: Scene, width: float) -> Scene:

@@ -26,7 +26,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from cbgo import keys
 from cbgo.config import described as _help
 from cbgo.errors import ConfigError, QueryError
 from cbgo.robot_cell import ActOutcome, RobotCell, RobotCellSettings
@@ -76,7 +75,6 @@ class MujocoSim(RobotCell):
         self.robot: Robot | None = None
         self.seq = {"scene": 0, "robot": 0}
         self.last_compile_s = 0.0
-        self._due = {"scene": 0.0, "robot": 0.0}
         self._pace: tuple[float, float] | None = None
 
     def shutdown(self) -> None:
@@ -119,16 +117,10 @@ class MujocoSim(RobotCell):
         While an action runs the event loop is busy with it, so the state timers cannot fire:
         the control loop publishes at the same rates instead.
         """
-        now = time.monotonic()
-        for kind, rate, topic, message in (
-                ("scene", self.settings.state_rate_hz, keys.SCENE_STATE, self.scene_message),
-                ("robot", self.settings.robot_rate_hz, keys.ROBOT_STATE, self.robot_message)):
-            if now >= self._due[kind]:
-                self._due[kind] = now + 1.0 / rate
-                self.ctx.publish(topic, message())
+        self.publish_due_states()
         if self.settings.realtime > 0 and self._pace is not None:
             wall0, sim0 = self._pace
-            ahead = (sim.time - sim0) / self.settings.realtime - (now - wall0)
+            ahead = (sim.time - sim0) / self.settings.realtime - (time.monotonic() - wall0)
             if ahead > 0:
                 time.sleep(ahead)
 

@@ -107,6 +107,21 @@ class RobotCell(Service):
         self.source = ""
         self.stops = 0
         self.counts = {"actions": 0, "ok": 0, "refused": 0, "stopped": 0, "inconsistent": 0}
+        self._due = {"scene": 0.0, "robot": 0.0}  # when each state stream is next due
+
+    def publish_due_states(self) -> None:
+        """Publishes the state streams that are due, at their rates, from inside an action.
+
+        While an action runs the event loop is busy with it, so its state timers cannot fire:
+        a robot's control loop calls this between its steps instead.
+        """
+        now = time.monotonic()
+        for kind, rate, topic, message in (
+                ("scene", self.settings.state_rate_hz, keys.SCENE_STATE, self.scene_message),
+                ("robot", self.settings.robot_rate_hz, keys.ROBOT_STATE, self.robot_message)):
+            if now >= self._due[kind]:
+                self._due[kind] = now + 1.0 / rate
+                self.ctx.publish(topic, message())
 
     # ------------------------------------------------------------------ what a robot supplies
 
