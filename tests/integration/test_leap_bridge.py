@@ -110,25 +110,27 @@ def test_an_mcap_recording_is_replayed_with_its_hands_order_and_pace(stack, tmp_
     stack.wait_alive(["router"])
     frames = stack.collect("hands/frame")
     stack.start_service("leap-bridge", "--source", "replay", str(path))
-    first_palm = next(f.hands[0]["palm_position"] for f in recorded if f.hands)
-    frames.wait(lambda m: m["hands"] and m["hands"][0]["palm_position"] == first_palm)
-    # every recorded hand frame has been replayed once its count of hand frames has arrived
-    frames.wait_count(sum(1 for f in recorded if f.hands), lambda m: bool(m["hands"]),
-                      timeout=30)
-    items = frames.arrivals()
-    palms = [(t, m["hands"][0]["palm_position"]) for t, m in items if m["hands"]]
-    wanted = [f.hands[0]["palm_position"] for f in recorded if f.hands]
-    start = [p for _, p in palms].index(first_palm)
-    replayed = palms[start:start + len(wanted)]
-    assert [p for _, p in replayed] == wanted
+    first = next(i for i, f in enumerate(recorded) if f.hands)
+    # Frames are published in order, numbered from 0, so a frame's number names the recorded
+    # frame it carries; the whole recording has been published once a frame numbered past its
+    # end arrives (idle frames follow it).
+    frames.wait(lambda m: m["seq"] >= len(recorded))
+    items = [(t, m) for t, m in frames.arrivals() if first <= m["seq"] < len(recorded)]
+    replayed = [(t, m, recorded[m["seq"]]) for t, m in items]
+    assert all(m["hands"] == [] if not f.hands else
+               m["hands"][0]["palm_position"] == f.hands[0]["palm_position"]
+               for _, m, f in replayed)
+    assert [m["seq"] for _, m, _ in replayed] == sorted(m["seq"] for _, m, _ in replayed)
+    # Hand frames are dropped under congestion by contract (docs/protocol.md, "Delivery
+    # policy"), so a loaded machine may lose a few; losing many would be a fault.
+    assert len(replayed) >= 0.9 * (len(recorded) - first)
     # The pace is the service's schedule: each frame is stamped when it was due (its capture
     # time), so the stamps follow the recording exactly whatever the machine's load.
-    start_item = [m for _, m in items if m["hands"]][start:start + len(wanted)]
-    stamps = np.array([m["ts"] for m in start_item])
-    slope = np.polyfit(np.arange(len(stamps)), stamps, 1)[0]
-    assert abs(slope * 60.0 - 1.0) < 0.01
+    offsets = np.array([m["ts"] - f.t for _, m, f in replayed])
+    assert np.ptp(offsets) < 0.005
     # and it is a schedule kept, not stamps written on a burst: a frame never arrives before
     # it is due, so the arrivals span at least the schedule less the first frame's lateness
-    arrivals = np.array([t for t, _ in replayed])
+    stamps = np.array([m["ts"] for _, m, _ in replayed])
+    arrivals = np.array([t for t, _, _ in replayed])
     assert arrivals[-1] - arrivals[0] >= 0.9 * (stamps[-1] - stamps[0])
     assert all(m["source"] == "replay" for _, m in items)
