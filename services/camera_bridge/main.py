@@ -9,6 +9,9 @@ Behaviour (the contract is services/camera_bridge/README.md):
 - one ``cbgo/hands/frame`` per camera frame (``source`` "leap": a live sensor in the Leap
   frame; ``device`` "camera" unless set), so every downstream service works unchanged;
   ``cbgo/user`` on change and every 2 s, as leap-bridge;
+- ``cbgo/camera/preview`` at ``--preview-hz`` (2 by default, 0: never): the image made small
+  (``--preview-width``), as JPEG, with the hands' landmarks in image coordinates, so a page can
+  show what the camera sees (the web page draws it beside the 3D hand);
 - what goes wrong is counted and said clearly, and never stops the stream: no camera or a busy
   one (tried again), no hand in view, more hands than ``--max-hands``, an image too dark,
   a frame that fails; an unreadable video file or image folder is a configuration error at
@@ -39,6 +42,7 @@ NO_HAND_SAY_S = 3.0
 """A hand out of view this long is said once in the log (then again after it came back)."""
 VELOCITY_SMOOTHING = 0.5
 """Weight of the newest finite difference in the palm velocity (exponential average)."""
+PREVIEW_QUALITY = 70  # JPEG quality of the preview: 320 × 240 in about 10-20 kB
 CURL_CHECK = 0.1
 """Fingertips this far (per knuckle span) to one side of the palm say which side the palm
 faces, and so the hand's chirality (`side_check`); flatter hands are not checked."""
@@ -89,6 +93,11 @@ class CameraBridgeSettings:
         "Leap frame rotation about the vertical, degrees (0: user faces the robot along -x)"))
     to_base: list[float] | None = field(default=None, metadata=_help(
         "full Leap(mm)->base(m) transform, 16 numbers row-major; overrides sensor_*"))
+    preview_hz: float = field(default=2.0, metadata=_help(
+        "camera images a second on cbgo/camera/preview, with the landmarks (0: none; at most "
+        "10)"))
+    preview_width: int = field(default=320, metadata=_help(
+        "width of the preview images, pixels (80-1280; the height keeps the aspect)"))
     wait_for: list[str] = field(default_factory=list, metadata=_help(
         "services whose liveliness to wait for before reading the source (a video or a "
         "folder then starts when its readers are up)"))
@@ -115,6 +124,10 @@ class CameraBridgeSettings:
             raise ConfigError("hold_s must be > 0 and gap_s >= 0")
         if len(self.sensor_position) != 3:
             raise ConfigError("sensor_position needs 3 numbers (m)")
+        if not 0.0 <= self.preview_hz <= 10.0:
+            raise ConfigError(f"preview_hz={self.preview_hz} must be within 0-10 (0: none)")
+        if not 80 <= self.preview_width <= 1280:
+            raise ConfigError(f"preview_width={self.preview_width} must be within 80-1280 px")
 
     def camera_pose(self) -> geometry.CameraPose:
         """Returns where the camera is and which way it looks."""
@@ -284,6 +297,8 @@ class CameraBridge(Service):
         self._hand_gone_since: float | None = None
         self._no_hand_said = False
         self._thread: threading.Thread | None = None
+        self._landmarks: list[tuple[str, np.ndarray]] = []  # (side, 21 × 2 px) of the last image
+        self._last_preview = -1e9
 
     def setup(self, ctx) -> None:
         """Opens the source and the tracker, declares outputs, starts the camera thread."""
@@ -298,7 +313,7 @@ class CameraBridge(Service):
                                    model_complexity=s.model_complexity,
                                    still_images=self.source.kind == "folder",
                                    min_detection=s.min_detection)
-        ctx.publishes(keys.HANDS_FRAME, keys.USER)
+        ctx.publishes(keys.HANDS_FRAME, keys.USER, keys.CAMERA_PREVIEW)
         self._thread = threading.Thread(target=self._run, name="camera", daemon=True)
         self._thread.start()
 
@@ -325,12 +340,14 @@ class CameraBridge(Service):
                 self.ctx.rejects.warning("frame-failed", f"a camera frame failed: {e!r}")
                 hands = []
             self._publish(hands, frame.captured)
+            self._preview(frame)
 
     def hands_of(self, frame: CameraFrame) -> list[dict]:
         """Returns the contract hands one camera frame shows (and says what went wrong)."""
         if frame.image is None:  # the camera sees nobody: every hand has left
             self._tracks.clear()
             self._still = (None, [])
+            self._landmarks = []
             return []
         if frame.still is not None:
             if frame.still == self._still[0]:
@@ -353,6 +370,7 @@ class CameraBridge(Service):
         return [{**hand, "palm_velocity": [0.0, 0.0, 0.0]} for hand in hands]
 
     def _hands(self, detections: list, frame: CameraFrame) -> list[dict]:
+        self._landmarks = []
         if not detections:
             self._no_hand(frame)
             return []
@@ -371,6 +389,7 @@ class CameraBridge(Service):
             if side in seen:
                 continue  # MediaPipe gave one side twice: keep the more confident
             seen.add(side)
+            self._landmarks.append((side, detection.image_px))
             self._check_side(detection, side)
             hands.append(self._hand(detection, side, K, frame.captured))
         for gone in set(self._tracks) - seen:
@@ -430,6 +449,28 @@ class CameraBridge(Service):
         if user != last_user or captured - last_time >= USER_REPEAT_S:
             self.ctx.publish(keys.USER, keys.USER.message(ts=captured, user=user))
             self._last_user = (user, captured)
+
+    def _preview(self, frame: CameraFrame) -> None:
+        """Publishes the image, small, with the landmarks, when one is due (`preview_hz`)."""
+        s = self.settings
+        if (s.preview_hz <= 0.0 or frame.image is None
+                or frame.captured - self._last_preview < 1.0 / s.preview_hz):
+            return
+        import cv2
+
+        height, width = frame.image.shape[:2]
+        size = (s.preview_width, max(1, round(height * s.preview_width / width)))
+        ok, jpeg = cv2.imencode(".jpg", cv2.resize(frame.image, size,
+                                                   interpolation=cv2.INTER_AREA),
+                                [cv2.IMWRITE_JPEG_QUALITY, PREVIEW_QUALITY])
+        if not ok:
+            return
+        self._last_preview = frame.captured
+        hands = [{"side": side, "points": np.round(px / [width, height], 4).tolist()}
+                 for side, px in self._landmarks]
+        self.ctx.publish(keys.CAMERA_PREVIEW, keys.CAMERA_PREVIEW.message(
+            ts=frame.captured, seq=self.seq - 1, width=size[0], height=size[1],
+            jpeg=jpeg.tobytes(), hands=hands))
 
     def status_extra(self) -> dict:
         """Adds the source, per-frame time, problems and the handedness check."""

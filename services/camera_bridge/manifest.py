@@ -8,6 +8,6 @@ MANIFEST = Manifest(
     summary="hand frames from an ordinary webcam, a video file or images (MediaPipe Hands)",
     order=11,
     replaces="leap-bridge",
-    publishes=(keys.HANDS_FRAME, keys.USER),
+    publishes=(keys.HANDS_FRAME, keys.USER, keys.CAMERA_PREVIEW),
     service="cbgo.services.camera_bridge.main:CameraBridge",
 )

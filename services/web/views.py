@@ -9,6 +9,7 @@ Rules (no Zenoh here; `main.py` and `replay.py` feed it, the tests call it direc
   evidence) are downsampled per stream and hand side to at most ``rate_hz``: the newest message
   of each period is sent, the others are counted as skipped; events, summaries, intents, plans
   and scenes are never skipped;
+- a camera preview's JPEG becomes a ``data:`` URL the page's image can show as it is;
 - evidence is recomputed from every static and dynamic message (before downsampling) with the
   episode service's own model and default settings (`cbgo.evidence`), reset at
   each episode start, exactly as ``cbgo plot episode`` recomputes it offline: the episode
@@ -17,6 +18,7 @@ Rules (no Zenoh here; `main.py` and `replay.py` feed it, the tests call it direc
 
 from __future__ import annotations
 
+import base64
 import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -28,7 +30,8 @@ from cbgo.evidence import Evidence, EvidenceSettings
 from cbgo.transform import default_to_base, parse_to_base
 
 # Streams that arrive with every hand frame (or near it): downsampled, newest wins.
-RATE_LIMITED = ("hands/frame", "gestures/static", "gaze", "robot/state", "@evidence")
+RATE_LIMITED = ("hands/frame", "gestures/static", "gaze", "robot/state", "@evidence",
+                "camera/preview")
 
 
 @dataclass
@@ -121,6 +124,13 @@ def frame_view(frame: dict, base: BaseFrame) -> dict:
             "hands": [hand_view(h, matrix) for h in frame["hands"]]}
 
 
+def preview_view(preview: dict) -> dict:
+    """Returns a camera preview with its JPEG as a ``data:`` URL (JSON carries no bytes)."""
+    return {"ts": preview["ts"], "seq": preview["seq"], "width": preview["width"],
+            "height": preview["height"], "hands": preview["hands"],
+            "src": "data:image/jpeg;base64," + base64.b64encode(preview["jpeg"]).decode()}
+
+
 class EvidenceView:
     """The episode service's evidence, recomputed from the gesture streams.
 
@@ -173,6 +183,8 @@ class Views:
             return out
         if topic == "hands/frame":
             out.append((topic, frame_view(message, self.base)))
+        elif topic == "camera/preview":
+            out.append((topic, preview_view(message)))
         else:
             out.append((topic, message))
         return out

@@ -94,6 +94,11 @@ def _builders(ts: float) -> dict[tuple[str, str], Any]:
                                      "device": "sim-user-1", "hands": [open_hand()]},
         ("gaze", "message"): {"v": v, "ts": ts, "point": [0.5, 0.1, 0.05],
                               "source": "simulated"},
+        ("camera/preview", "message"): {
+            "v": v, "ts": ts, "seq": 1234, "width": 320, "height": 240,
+            "jpeg": b"\xff\xd8\xff\xe0...", "hands": [{"side": "right", "points": [
+                [0.5, 0.8], *[[round(0.4 + 0.05 * f, 2), round(0.7 - 0.08 * j, 2)] for f in range(5)
+                              for j in range(4)]]}]},
         ("user", "message"): {"v": v, "ts": ts, "user": "user1"},
         ("gestures/static", "message"): {"v": v, "ts": ts, "seq": 1234, "hand_id": 1,
                                          "side": "right", **_static_probs(),

@@ -76,6 +76,7 @@ class Topic:
 
 HANDS_FRAME = Topic("hands/frame", reliable=False, express=True)
 GAZE = Topic("gaze", reliable=False, express=True)
+CAMERA_PREVIEW = Topic("camera/preview", reliable=False)
 USER = Topic("user")
 GESTURES_STATIC = Topic("gestures/static", reliable=False, express=True)
 GESTURES_DYNAMIC = Topic("gestures/dynamic")
@@ -98,7 +99,7 @@ SIM_INFO = Topic("sim/info", query=True)
 TOPICS: dict[str, Topic] = {
     t.suffix: t
     for t in (
-        HANDS_FRAME, GAZE, USER, GESTURES_STATIC, GESTURES_DYNAMIC, EPISODE_EVENT,
+        HANDS_FRAME, GAZE, CAMERA_PREVIEW, USER, GESTURES_STATIC, GESTURES_DYNAMIC, EPISODE_EVENT,
         EPISODE_SUMMARY, SCENE_STATE, INTENT, INTENT_INFER, INTENT_FEEDBACK, INTENT_CLARIFY,
         INTENT_ANSWER, ROBOT_ACT,
         ROBOT_STATE, ROBOT_STOP, PLAN_STATUS, SIM_RESET, SIM_RENDER, SIM_INFO,

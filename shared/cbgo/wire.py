@@ -210,6 +210,12 @@ HANDS_FRAME = Obj(
 GAZE = Obj({"v": V, "ts": TS, "point": POS,
             "source": Str(("eyetracker", "simulated", "pointing"))})
 USER = Obj({"v": V, "ts": TS, "user": NAME})
+PREVIEW_LANDMARKS = 21  # MediaPipe's hand landmarks: wrist, then four per finger, thumb first
+CAMERA_PREVIEW = Obj({
+    "v": V, "ts": TS, "seq": SEQ, "width": Int(lo=1), "height": Int(lo=1), "jpeg": Bytes(),
+    "hands": ListOf(Obj({"side": Str(("left", "right")),
+                         "points": ListOf(Vec(2), PREVIEW_LANDMARKS, PREVIEW_LANDMARKS)}), 0, 16),
+})
 
 GESTURE_FIELDS: dict[str, Spec] = {
     "v": V, "ts": TS, "seq": SEQ, "hand_id": Int(), "side": Str(("left", "right")),
@@ -344,7 +350,7 @@ SERVICE_STATUS = Obj({
 # robot/stop: "any message stops robot motion", so it has no schema and any payload counts.
 ANY_PAYLOAD = frozenset({"robot/stop"})
 SCHEMAS: dict[str, Spec | None] = {
-    "hands/frame": HANDS_FRAME, "gaze": GAZE, "user": USER,
+    "hands/frame": HANDS_FRAME, "gaze": GAZE, "camera/preview": CAMERA_PREVIEW, "user": USER,
     "gestures/static": GESTURES_STATIC, "gestures/dynamic": GESTURES_DYNAMIC,
     "episode/event": EPISODE_EVENT, "episode/summary": EPISODE_SUMMARY,
     "scene/state": SCENE_STATE, "intent": INTENT, "intent/feedback": INTENT_FEEDBACK,

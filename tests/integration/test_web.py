@@ -240,6 +240,31 @@ def test_stop_publishes_robot_stop(page, system):
     assert not page.errors, page.errors
 
 
+def test_the_camera_preview_is_drawn_with_its_landmarks_beside_the_3d_hand(page, system):
+    from PIL import Image
+
+    stack, _, _, _ = system
+    photo = next((Path(__file__).parents[1] / "fixtures" / "camera" / "thumbs_up_photos").iterdir())
+    image = Image.open(photo).convert("RGB")
+    image = image.resize((320, round(image.height * 320 / image.width)))
+    jpeg = io.BytesIO()
+    image.save(jpeg, "JPEG", quality=70)
+    preview = example("camera/preview", ts=time.time(), width=image.width, height=image.height,
+                      jpeg=jpeg.getvalue())
+    stack.put("camera/preview", preview)
+    shown(page, stack, page.locator("[data-testid=camera-view]"))
+    expect(page.locator("#camera-caption")).to_contain_text("right hand")
+    size = page.evaluate("[document.getElementById('camera').width, "
+                         "document.getElementById('camera').height]")
+    assert size == [image.width, image.height]
+    # the landmarks are drawn over the photo in the right hand's colour (#f778ba)
+    drawn = Image.open(io.BytesIO(page.locator("[data-testid=camera-image]").screenshot()))
+    pink = [c for _, c in drawn.convert("RGB").getcolors(maxcolors=1 << 20)
+            if abs(c[0] - 0xf7) < 12 and abs(c[1] - 0x78) < 12 and abs(c[2] - 0xba) < 12]
+    assert pink, "no landmark drawn in the right hand's colour"
+    assert not page.errors, page.errors
+
+
 def test_feedback_publishes_intent_feedback_for_the_episodes_user(page, system):
     stack, _, _, _ = system
     feedback = stack.collectors["intent/feedback"]

@@ -23,7 +23,7 @@ const call = (i) => `${i.action ?? "—"}(${i.object ?? ""})`;
 function emptyStore() {
   return { hands: null, scene: null, intentScene: null, robot: null, gaze: null, user: null, plan: null,
     intent: null, services: null, stop: null, staticP: [], dynamicP: [], evidence: [],
-    clarify: null, mapping: null, events: [], summaries: [], intents: [], feedback: [], now: 0,
+    clarify: null, mapping: null, preview: null, events: [], summaries: [], intents: [], feedback: [], now: 0,
     dirty: new Set(["all"]) };
 }
 
@@ -49,6 +49,7 @@ function apply(topic, msg, t) {
   const handlers = {
     "hands/frame": () => { store.hands = msg; },
     "gaze": () => { store.gaze = msg; },
+    "camera/preview": () => { store.preview = msg; },
     "user": () => { store.user = msg.user; },
     "scene/state": () => { store.scene = msg; },
     "robot/state": () => { store.robot = msg; },
@@ -575,6 +576,37 @@ function focus() {
   return s?.focus || null;
 }
 
+// MediaPipe's 21 landmarks: the wrist, then four per finger, thumb first; bones between them
+const HAND_LINKS = [[0, 1], [0, 5], [0, 17], [5, 9], [9, 13], [13, 17],
+  ...[1, 5, 9, 13, 17].flatMap((b) => [[b, b + 1], [b + 1, b + 2], [b + 2, b + 3]])];
+const SIDE_COLOURS = { left: "#39c5cf", right: "#f778ba" };
+
+// The camera's image (cbgo/camera/preview) with the hands' landmarks drawn on it, so a user
+// sees what the camera-bridge sees beside the 3D hand it made of it.
+function drawCamera() {
+  const preview = store.preview;
+  if (!preview) return;
+  const image = new Image();
+  image.onload = () => {
+    const canvas = $("camera"), g = canvas.getContext("2d");
+    canvas.width = preview.width; canvas.height = preview.height;
+    g.drawImage(image, 0, 0);
+    g.lineWidth = 2;
+    for (const hand of preview.hands) {
+      const px = hand.points.map(([x, y]) => [x * preview.width, y * preview.height]);
+      g.strokeStyle = g.fillStyle = SIDE_COLOURS[hand.side] || "#fff";
+      g.beginPath();
+      for (const [a, b] of HAND_LINKS) { g.moveTo(...px[a]); g.lineTo(...px[b]); }
+      g.stroke();
+      for (const [x, y] of px) g.fillRect(x - 2, y - 2, 4, 4);
+    }
+    const hands = preview.hands.map((h) => `${h.side} hand`).join(", ") || "no hand";
+    $("camera-caption").textContent = `camera · ${hands}`;
+    $("camera-view").hidden = false;
+  };
+  image.src = preview.src;
+}
+
 let lastCharts = 0;
 function draw(now) {
   // The next frame first: a panel that throws is reported (the console, the page's error
@@ -590,6 +622,7 @@ function draw(now) {
         focus: focus(), pointing: pointing() });
     sceneView.render();
   }
+  if (any("camera/preview")) drawCamera();
   if (any("intent", "episode/summary", "scene/state")) drawIntent();
   if (any("intent", "episode/summary")) drawFeedback();  // not on scenes: keep the user's choice
   if (any("intent/clarify")) drawClarify();

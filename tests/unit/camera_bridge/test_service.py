@@ -128,7 +128,8 @@ def test_a_source_that_is_nothing_is_a_configuration_error(tmp_path):
 
 
 @pytest.mark.parametrize("bad", [{"placement": "above"}, {"max_hands": 0}, {"fov_deg": 5.0},
-                                 {"model_complexity": 2}, {"camera_position": [1.0, 2.0]}])
+                                 {"model_complexity": 2}, {"camera_position": [1.0, 2.0]},
+                                 {"preview_hz": 11.0}, {"preview_width": 40}])
 def test_bad_settings_are_refused_with_their_name(bad):
     with pytest.raises(ConfigError, match=next(iter(bad))):
         CameraBridgeSettings(**bad)
@@ -164,3 +165,30 @@ def test_one_image_looped_with_gaps_comes_back_after_each_gap(running, tmp_path)
     ids = [m["hands"][0]["id"] for m in frames(bus) if m["hands"]]
     assert len(set(ids)) >= 3  # each showing is a hand entering anew
     assert bus.query("status", None)[1]["problems"]["failed"] == 0
+
+
+def test_the_preview_is_the_image_made_small_with_the_landmarks_of_the_published_hands(
+        running):
+    bus = running(camera=str(PHOTOS), hold_s=0.6, rate_hz=20, preview_hz=10)
+    wait_until(bus, lambda s: s["reading"]["state"] == "finished")
+    previews = [m for k, m in bus.published if k == "camera/preview"]
+    assert len(previews) >= 4  # about 6 a photo at 10 a second; only what is due
+    by_seq = {m["seq"]: m for m in frames(bus)}
+    for preview in previews:
+        wire.validate(preview, wire.CAMERA_PREVIEW)
+        image = cv2.imdecode(np.frombuffer(preview["jpeg"], np.uint8), cv2.IMREAD_COLOR)
+        assert image.shape[:2] == (preview["height"], preview["width"]) and preview["width"] == 320
+        frame = by_seq[preview["seq"]]  # the hand frame made of the same image
+        assert [h["side"] for h in preview["hands"]] == [h["side"] for h in frame["hands"]]
+        for hand in preview["hands"]:
+            points = np.asarray(hand["points"])
+            assert points.shape == (21, 2) and (points >= -0.1).all() and (points <= 1.1).all()
+    assert any(p["hands"] for p in previews)
+    stamps = [p["ts"] for p in previews]
+    assert min(np.diff(stamps)) >= 0.1 - 1e-6  # no more than preview_hz
+
+
+def test_no_preview_with_preview_hz_0(running):
+    bus = running(camera=str(PHOTOS), hold_s=0.3, rate_hz=20, preview_hz=0)
+    wait_until(bus, lambda s: s["reading"]["state"] == "finished")
+    assert frames(bus) and not [k for k, _ in bus.published if k == "camera/preview"]

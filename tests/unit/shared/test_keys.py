@@ -218,8 +218,8 @@ def test_a_stop_is_sent_express_and_reliably():
     assert keys.ROBOT_STOP.express and keys.ROBOT_STOP.reliable
 
 
-def test_the_topic_table_holds_the_twenty_contract_keys_by_suffix():
-    assert len(keys.TOPICS) == 20
+def test_the_topic_table_holds_the_twenty_one_contract_keys_by_suffix():
+    assert len(keys.TOPICS) == 21
     assert all(suffix == topic.suffix for suffix, topic in keys.TOPICS.items())
 
 

@@ -77,3 +77,20 @@ def test_views_are_compact_json_without_nan():
     assert json.loads(text)["topic"] == "intent" and " " not in text.split('"msg"')[0]
     with pytest.raises(ValueError):
         to_json("x", {"v": float("nan")}, 0.0)
+
+
+def test_a_camera_preview_goes_out_as_a_data_url_with_its_landmarks_at_the_pages_rate():
+    import base64
+
+    clock = Clock()
+    views = Views(2.0, clock)
+    preview = example("camera/preview", jpeg=b"\xff\xd8\xff\xe0 jpeg bytes")
+    (topic, view), = views.render("camera/preview", preview)
+    assert topic == "camera/preview"
+    head, data = view["src"].split(",", 1)
+    assert head == "data:image/jpeg;base64" and base64.b64decode(data) == preview["jpeg"]
+    assert view["hands"] == preview["hands"] and view["width"] == preview["width"]
+    json.loads(to_json(topic, view, 1.0))  # JSON-safe
+    assert views.render("camera/preview", preview) == []  # within the period: skipped
+    clock.t += 0.5
+    assert len(views.render("camera/preview", preview)) == 1
