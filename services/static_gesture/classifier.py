@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import hashlib
 import pickle
+import re
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -100,6 +101,22 @@ def shipped_model_path() -> Path:
 def user_model_path(env: Any = None) -> Path:
     """Returns the base path of the user's own model: ``data_dir()/models/static-gesture``."""
     return data_dir(env) / "models" / MODEL_BASENAME
+
+
+USER_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.@-]{0,63}$")
+"""User names a personal model may be stored under (a name on ``cbgo/user`` is any string: one
+with a slash or starting with a dot is served the model of every user)."""
+
+
+def personal_model_path(user: str, env: Any = None) -> Path | None:
+    """Returns the base path of one user's own model, None for a name no file may carry.
+
+    ``data_dir()/calibration/static-gesture/<user>/model`` (``.pt`` and ``.json``), beside the
+    user's dynamic calibration (``data_dir()/calibration/<user>.json``).
+    """
+    if not USER_NAME.match(user):
+        return None
+    return data_dir(env) / "calibration" / MODEL_BASENAME / user / "model"
 
 
 def default_model_path(env: Any = None) -> Path:

@@ -59,6 +59,7 @@ from cbgo.services.static_gesture.classifier import (
     NONE,
     StaticClassifier,
     default_model_path,
+    personal_model_path,
     user_model_path,
 )
 from cbgo.simuser.scenario import hold_scenario
@@ -341,6 +342,18 @@ def _reload(args: argparse.Namespace, written: str) -> str:
     return "\n".join(lines)
 
 
+def check_personal(user: str | None) -> None:
+    """Checks that ``--personal`` names a user whose model a file may hold.
+
+    Raises:
+        ValueError: no ``--user``, or a name with other characters than letters, digits and
+            ``_ . @ -``.
+    """
+    if not user or personal_model_path(user) is None:
+        raise ValueError("--personal needs --user NAME, a name of letters, digits and _ . @ - "
+                         "(whose own model is trained)")
+
+
 def run(args: argparse.Namespace) -> int:
     """Records, checks, stores, retrains and reloads (see the module docstring).
 
@@ -355,6 +368,12 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as e:
         print(f"cbgo: {e}", file=sys.stderr)
         return 2
+    if getattr(args, "personal", False):
+        try:
+            check_personal(args.user)
+        except ValueError as e:
+            print(f"cbgo: {e}", file=sys.stderr)
+            return 2
     frames = args.frames or DEFAULT_FRAMES
     settle_s = getattr(args, "settle", None)
     if settle_s is None:
@@ -378,7 +397,8 @@ def run(args: argparse.Namespace) -> int:
     user = args.user or operator or "unknown"
     take = {"user": user, "ts": time.time(),
             "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            "count": len(capture.rows), "device": capture.device}
+            "count": len(capture.rows), "device": capture.device,
+            **({"personal": True} if getattr(args, "personal", False) else {})}
     replace = bool(getattr(args, "replace", False))
     path = train.store_gesture(name, rows, take, replace=replace)
     print(f"stored {len(capture.rows)} rows of {name!r} by {user} in {path}")
@@ -388,9 +408,16 @@ def run(args: argparse.Namespace) -> int:
     options = train.TrainOptions()
     if getattr(args, "epochs", None):
         options.epochs = args.epochs
-    trained, model_id = train.train_and_save(options, user_model_path(),
-                                             progress="retraining static-gesture")
+    out, takes = user_model_path(), None
+    if getattr(args, "personal", False):
+        out, takes = personal_model_path(user), train.load_user_gestures(user=user)
+    trained, model_id = train.train_and_save(options, out, progress="retraining static-gesture",
+                                             user=takes)
+    whose = f"{user}'s own model, served while cbgo/user names {user}" if takes is not None \
+        else "the model of every user"
     print(f"retrained {model_id} in {trained.seconds:.1f} s: "
-          f"{', '.join(trained.metadata['names'])}; wrote {user_model_path()}.pt/.json")
-    print(_reload(args, model_id))
+          f"{', '.join(trained.metadata['names'])}; wrote {out}.pt/.json ({whose})")
+    print(_reload(args, model_id) if takes is None else
+          "static-gesture loads it within its --watch-s whenever cbgo/user names "
+          f"{user} (the next time they are named, if they are now)")
     return 0

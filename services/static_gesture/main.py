@@ -18,9 +18,11 @@ docs/design/static_gesture.md):
   an ok sign read as the paper's ``pinch`` for one, is no evidence of a gesture nobody made.
   A name the model lacks is a configuration error at start, and a reloaded model that lacks
   one is refused, the old model staying in service;
-- the model: ``--model PATH``, else the user's model (``data_dir()/models/static-gesture``, what
-  ``cbgo train static`` and ``cbgo gestures record`` write) if it exists, else the one shipped
-  in the package. A model that does not load at start is a configuration error (exit 2);
+- the model: ``--model PATH``, else the own model of the person ``cbgo/user`` names
+  (``cbgo gestures record NAME --static --user U --personal`` writes it) if they have one,
+  else the user's model (``data_dir()/models/static-gesture``, what ``cbgo train static`` and
+  ``cbgo gestures record`` write) if it exists, else the one shipped in the package. A model
+  that does not load at start is a configuration error (exit 2);
 - ``@ctl/static-gesture/reload`` loads the model again (optionally ``{model: PATH}`` to switch)
   and answers with its id; a model that does not load is an error reply and the old one keeps
   running. The model files are also polled every ``--watch-s`` seconds (their mtime and size;
@@ -49,10 +51,13 @@ from cbgo.services.static_gesture.classifier import (
     MODEL_SUFFIXES,
     NONE,
     StaticClassifier,
+    personal_model_path,
     shipped_model_path,
     user_model_path,
 )
 from cbgo.services.static_gesture.openset import fade_into_none
+
+LOADED_MODELS = 8  # models kept loaded for people taking turns
 
 
 @dataclass
@@ -108,6 +113,7 @@ class StaticGesture(Service):
         self.hands = 0
         self.motion = motion.FingerMotion()
         self.moving = 0  # hands whose gestures faded for their fingers' motion
+        self._loaded: dict[tuple, StaticClassifier] = {}
 
     def setup(self, ctx) -> None:
         """Called once before the service is announced alive: loads the model, declares I/O.
@@ -124,6 +130,7 @@ class StaticGesture(Service):
                      f"; ignored: {', '.join(self.settings.ignore)}" if self.settings.ignore
                      else "")
         ctx.subscribe(keys.HANDS_FRAME, self.on_hands_frame)
+        ctx.subscribe(keys.USER, self.on_user)
         ctx.publishes(keys.GESTURES_STATIC)
         ctx.control("reload", self.on_reload)
         if self.settings.watch_s > 0:
@@ -149,6 +156,10 @@ class StaticGesture(Service):
         # are loaded again on the next poll (and the weights' hash refuses a mixed pair).
         self.classifier = classifier
         self.store.served(path, stamps)
+        # People take turns: the models they were served stay loaded, so a turn is no reload
+        self._loaded[(path, stamps)] = classifier
+        while len(self._loaded) > LOADED_MODELS:
+            self._loaded.pop(next(iter(self._loaded)))
 
     def on_hands_frame(self, msg: dict) -> list:
         """Called for each valid hands/frame: returns one gestures/static message per hand."""
@@ -195,6 +206,14 @@ class StaticGesture(Service):
         probs[:, ignored] = 0.0
         return probs
 
+    def on_user(self, msg: dict) -> None:
+        """Called for each ``cbgo/user``: serves that person's own model if they have one."""
+        personal = personal_model_path(msg["user"])
+        if personal == self.store.personal:
+            return
+        self.store.personal = personal
+        self.on_watch()
+
     def on_reload(self, query: dict) -> dict:
         """Called for each ``reload`` query: loads the model again (or ``{model: PATH}``).
 
@@ -216,13 +235,16 @@ class StaticGesture(Service):
                 "previous": previous, "path": str(path), "names": classifier.names}
 
     def on_watch(self) -> None:
-        """Called every ``--watch-s`` s: reloads the model if its files changed or moved."""
+        """Called every ``--watch-s`` s and on a new user: reloads the model if it changed.
+
+        It changed when its files did, or when another is to be served (a person's own).
+        """
         if not self.store.changed():
             return
         path, stamps = self.store.snapshot()
         previous = self.classifier.model_id
         try:
-            classifier = self._load(path)
+            classifier = self._loaded.get((path, stamps)) or self._load(path)
         except ConfigError as e:
             self.store.served(path, stamps)  # report a broken file once
             self.ctx.counters.error("watch", str(e))

@@ -81,6 +81,7 @@ import argparse
 import json
 import os
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
@@ -143,6 +144,7 @@ class TrainOptions:
     rotate_shape_deg: float | None = None
     curl_deg: float = 0.0
     spliced_none: int = 0
+    none_turned: int = 0
     members: int = 3
     ok_sign: str = "pinch"
 
@@ -174,7 +176,12 @@ def _features(rng: np.random.Generator, shapes: list[HandShape], poses: list[Han
     return F.hands_features(build_hands(shapes, poses, palms), to_recorded_side=True)
 
 
-def _turned(pose: HandPose, rng: np.random.Generator, deg: float = 10.0) -> HandPose:
+def _turned(pose: HandPose, rng: np.random.Generator, deg: float | None = 10.0) -> HandPose:
+    """Turns the palm by N(0, deg) in roll, pitch and yaw; any way at all when deg is None."""
+    if deg is None:
+        roll, yaw = rng.uniform(-np.pi, np.pi, 2)
+        pitch = np.arcsin(rng.uniform(-1.0, 1.0))  # the fingers' direction uniform on a sphere
+        return pose.rotated(roll=roll, pitch=pitch, yaw=yaw)
     roll, pitch, yaw = rng.normal(0.0, deg * _DEG, 3)
     return pose.rotated(roll=roll, pitch=pitch, yaw=yaw)
 
@@ -201,13 +208,15 @@ def simulate_gestures(names: list[str], per_gesture: int, rng: np.random.Generat
     return _features(rng, _shapes(rng, len(poses)), poses), np.asarray(labels, dtype=np.int64)
 
 
-def simulate_none(count: int, gestures: list[str], rng: np.random.Generator) -> np.ndarray:
+def simulate_none(count: int, gestures: list[str], rng: np.random.Generator,
+                  turn_deg: float | None = 10.0) -> np.ndarray:
     """Simulated no-gesture poses: relaxed hands, and hands part-way into a gesture.
 
     Args:
         count: how many.
         gestures: the gestures a hand may be forming (blended by 0–40 %).
         rng: the random generator.
+        turn_deg: the palm's turn (`_turned`; None: any way).
 
     Returns:
         Features (count, 57) on the recorded side.
@@ -222,7 +231,7 @@ def simulate_none(count: int, gestures: list[str], rng: np.random.Generator) -> 
         if rng.random() < 0.6:
             target = gesture_pose(gestures[int(rng.integers(len(gestures)))], rng)
             pose = blend(pose, target, float(rng.uniform(0.0, NONE_BLEND_MAX)))
-        poses.append(_turned(pose, rng))
+        poses.append(_turned(pose, rng, turn_deg))
     return _features(rng, _shapes(rng, count), poses)
 
 
@@ -241,7 +250,8 @@ SPLICE_PATTERNS = np.array([(thumb, *p) for p in OFF_VOCABULARY for thumb in (0,
 finger patterns no gesture uses, thumb in or out."""
 
 
-def simulate_off_vocabulary(count: int, rng: np.random.Generator) -> np.ndarray:
+def simulate_off_vocabulary(count: int, rng: np.random.Generator,
+                            turn_deg: float | None = 10.0) -> np.ndarray:
     """Simulated poses outside the vocabulary: the finger patterns no gesture uses.
 
     Each pose takes one of `OFF_VOCABULARY`'s patterns (thumb out or in at random) or of
@@ -255,6 +265,7 @@ def simulate_off_vocabulary(count: int, rng: np.random.Generator) -> np.ndarray:
     Args:
         count: how many.
         rng: the random generator.
+        turn_deg: the palm's turn (`_turned`; None: any way).
 
     Returns:
         Features (count, 57) on the recorded side.
@@ -283,7 +294,7 @@ def simulate_off_vocabulary(count: int, rng: np.random.Generator) -> np.ndarray:
         held = gesture_mean(STATIC_GESTURES[int(rng.integers(len(STATIC_GESTURES)))])
         v[21:] = held.to_vector()[21:]
         pose = HandPose.from_vector(clip_to_limits(v + correlated_normal(rng) * jitter))
-        poses.append(_turned(pose, rng))
+        poses.append(_turned(pose, rng, turn_deg))
     return _features(rng, _shapes(rng, count), poses)
 
 
@@ -389,18 +400,48 @@ def read_gesture(path: Path) -> UserGesture:
     return UserGesture(meta["name"], x, meta.get("takes", []), path)
 
 
-def load_user_gestures(directory: Path | None = None) -> list[UserGesture]:
-    """Returns every readable recorded gesture, by name (unreadable files are reported)."""
+def load_user_gestures(directory: Path | None = None, user: str | None = None
+                       ) -> list[UserGesture]:
+    """Returns every readable recorded gesture, by name (unreadable files are reported).
+
+    With ``user``, only that person's takes (a gesture none of whose takes are theirs is left
+    out): what a personal model is trained on. Without, every take but the personal ones
+    (recorded with ``--personal``: that person's model only).
+    """
     directory = gestures_dir() if directory is None else Path(directory)
     out = []
     for path in sorted(directory.glob("*.npz")) if directory.is_dir() else []:
         if path.name.startswith("tmp-"):
             continue
         try:
-            out.append(read_gesture(path))
+            gesture = read_gesture(path)
         except (ValueError, KeyError, OSError) as e:
             print(f"skipping recorded gesture {path}: {e}")
+            continue
+        gesture = takes_of(gesture, (lambda t: t.get("user") == user) if user is not None
+                           else (lambda t: not t.get("personal", False)))
+        if gesture is not None:
+            out.append(gesture)
     return out
+
+
+def takes_of(gesture: UserGesture, keep: Callable[[dict], bool]) -> UserGesture | None:
+    """Returns the gesture with only the takes ``keep`` accepts (their rows), None if none.
+
+    The rows are the takes' rows in order, each take's ``count`` of them; a file whose takes do
+    not account for its rows (recorded before takes were counted) is kept whole.
+    """
+    ends = np.cumsum([int(t.get("count", 0)) for t in gesture.takes])
+    if not len(ends) or ends[-1] != len(gesture.x):
+        return gesture if all(keep(t) for t in gesture.takes) else None
+    kept = [(t, slice(int(end) - int(t.get("count", 0)), int(end)))
+            for t, end in zip(gesture.takes, ends, strict=True) if keep(t)]
+    if not kept:
+        return None
+    if len(kept) == len(gesture.takes):
+        return gesture
+    return UserGesture(gesture.name, np.concatenate([gesture.x[rows] for _, rows in kept]),
+                       [t for t, _ in kept], gesture.path)
 
 
 def augment(x: np.ndarray, rows: int, rng: np.random.Generator) -> np.ndarray:
@@ -509,8 +550,11 @@ def build_dataset(options: TrainOptions, real: tuple | None = None,
     x_sim, y_sim = simulate_gestures(list(base), options.per_gesture, rng)
     parts = [(x_real, y_real, "real"), (x_sim, y_sim, "simulated")]
     if options.none > 0:
+        turned = options.none_turned
         x_none = np.concatenate([simulate_none(options.none, list(base), rng),
-                                 simulate_off_vocabulary(options.off_vocabulary, rng)])
+                                 simulate_off_vocabulary(options.off_vocabulary, rng),
+                                 simulate_none(turned - turned // 2, list(base), rng, None),
+                                 simulate_off_vocabulary(turned // 2, rng, None)])
         parts.append((x_none, np.full(len(x_none), names.index(NONE)), "none"))
     if frames is not None and len(frames):
         x_m, y_m, s_m = mmhgr_rows(frames, names, options, rng, unknown)
@@ -853,6 +897,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "and open hand (the finger patterns no gesture uses): horns and "
                              "hang loose rejected more often, but C, L and thumb down less often "
                              f"(docs/design/static_gesture.md) [{d.spliced_none}]")
+    parser.add_argument("--none-turned", type=int, default=d.none_turned,
+                        help="this many more simulated `none` hands (relaxed, forming, outside "
+                             "the vocabulary) turned any way at all: a hand held palm up or "
+                             "fingers down is no gesture by its orientation alone "
+                             f"[{d.none_turned}]")
     parser.add_argument("--ok-sign", choices=mmhgr.OK_SIGNS, default=d.ok_sign,
                         help="what the HGR set's ok signs are trained as: pinch (the paper's "
                              "recorded pinches are ok signs) or none (an unknown pose). The "
@@ -887,14 +936,17 @@ def _options_of(args: argparse.Namespace) -> TrainOptions:
                         mmhgr=not args.no_mmhgr, mmhgr_stride=args.mmhgr_stride,
                         rotate_deg=args.rotate_deg, rotate_shape_deg=args.rotate_shape_deg,
                         curl_deg=args.curl_deg, spliced_none=args.spliced_none,
-                        ok_sign=args.ok_sign,
+                        none_turned=args.none_turned, ok_sign=args.ok_sign,
                         user_gestures=not (args.no_user_gestures or args.shipped))
 
 
-def train_and_save(options: TrainOptions, out: Path, progress: bool | str = True
-                   ) -> tuple[Trained, str]:
-    """Builds the data set, trains, writes the model; returns it and its id."""
-    trained = fit(build_datasets(options), options, progress)
+def train_and_save(options: TrainOptions, out: Path, progress: bool | str = True,
+                   user: list[UserGesture] | None = None) -> tuple[Trained, str]:
+    """Builds the data set, trains, writes the model; returns it and its id.
+
+    ``user``: the recorded gestures to train on (default: every one in the data directory).
+    """
+    trained = fit(build_datasets(options, user=user), options, progress)
     _, _, model_id = save_model(out, trained)
     return trained, model_id
 

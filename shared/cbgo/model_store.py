@@ -4,6 +4,8 @@ The three model-serving services (static-gesture, dynamic-gesture, intent) find 
 same way and take the same flags:
 
 - ``--model PATH`` (env ``CBGO_MODEL``) when given;
+- else the person's own model (`ModelStore.personal`, set by a service that follows
+  ``cbgo/user``), once all its files are there;
 - else the user's model in the data directory (`cbgo.config.data_dir`), where
   ``cbgo train <name>`` writes it, once all its files are there;
 - else the model shipped with the package (never written to: an installed package may be
@@ -45,12 +47,15 @@ class ModelStore:
         suffixes: the files of one model: each suffix replaces the base path's (``""``: the
             base path itself is the file).
         configured: ``--model``, when given (then the user's and the shipped are not used).
+        personal: the base path of the current person's own model, if the service has one
+            (served before the user's when all its files are there).
     """
 
     shipped: Path
     user: Path
     suffixes: tuple[str, ...] = ("",)
     configured: str | None = None
+    personal: Path | None = None
     _watched: tuple = field(default=(None, None), repr=False)
 
     def files(self, base: Path) -> list[Path]:
@@ -61,6 +66,8 @@ class ModelStore:
         """Returns the base path of the model to serve now (chosen again at each call)."""
         if self.configured:
             return Path(self.configured)
+        if self.personal is not None and all(f.is_file() for f in self.files(self.personal)):
+            return self.personal
         if all(f.is_file() for f in self.files(self.user)):
             return self.user
         return self.shipped

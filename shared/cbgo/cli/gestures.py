@@ -51,8 +51,10 @@ takes' speeds are stored as <data dir>/calibration/NAME.json; the running dynami
 re-reads it and judges strokes by it whenever cbgo/user names the person.
 
 A static pose the tracker bends for this person (a thumbs-up read as grab) is taught with
-`cbgo gestures record thumbsup --static --takes 3 --user NAME`: the takes join the model's
-training and the running static-gesture reloads it (for every user of the data directory)."""
+`cbgo gestures record thumbsup --static --takes 3 --user NAME --personal`: a model of the
+person's own (the shipped data and their takes), which the running static-gesture serves
+whenever cbgo/user names them. Without --personal the takes join the model of every user of
+the data directory."""
 
 CALIBRATE_EXAMPLES = """\
 examples:
@@ -113,6 +115,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="renditions to record; the hand leaves the view between them [1]")
     record.add_argument("--user", default=None, metavar="U",
                         help="who demonstrates (default: the operator on cbgo/user)")
+    record.add_argument("--personal", action="store_true",
+                        help="static: retrain the demonstrator's own model (their takes only), "
+                             "served while cbgo/user names them, instead of the model of "
+                             "every user of the data directory")
     record.add_argument("--timeout", type=float, default=60.0, metavar="S",
                         help="give up if the takes are not complete within S seconds [60]")
     record.add_argument("--settle", type=float, default=None, metavar="S",
@@ -293,6 +299,8 @@ def run(args: argparse.Namespace) -> int:
         return _calibrate(args)
     if args.frames is not None and args.frames < 1 or args.takes < 1:
         fail("--frames and --takes must be at least 1", 2)
+    if args.personal and args.kind != "static":
+        fail("--personal trains a person's own static-gesture model: it goes with --static", 2)
     if args.simulate and args.kind != "static":
         fail("--simulate shows a held pose: it goes with --static (a stroke is recorded from "
              "a scenario played with `cbgo get @ctl/leap-bridge/play`)", 2)
@@ -301,6 +309,8 @@ def run(args: argparse.Namespace) -> int:
         module.check_name(args.name)
         if args.simulate:
             module.simulate_pose(args.simulate, args.name)
+        if args.personal:
+            module.check_personal(args.user)
     except (ValueError, ConfigError) as e:
         print(f"cbgo: {e}", file=sys.stderr)
         return 2

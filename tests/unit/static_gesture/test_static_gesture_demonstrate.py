@@ -243,3 +243,10 @@ def test_a_new_gesture_takes_the_no_gesture_rows_of_its_finger_pattern_out_of_no
     # more examples of a gesture of the vocabulary claim nothing
     extra = train.build_dataset(options, user=[train.UserGesture("two", two, [{}])])
     assert (extra.y == extra.names.index("none")).sum() == none.sum()
+
+
+@pytest.mark.parametrize("user", [None, "../alice"])
+def test_personal_needs_a_user_a_file_may_be_named_after_before_connecting(user, capsys):
+    argv = ["record", "thumbsup", "--static", "--personal", *(["--user", user] if user else [])]
+    assert cli.run(parse(argv)) == 2
+    assert "--personal needs --user NAME" in capsys.readouterr().err

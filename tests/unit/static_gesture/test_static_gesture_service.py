@@ -17,6 +17,7 @@ from cbgo.services.static_gesture import invariant
 from cbgo.services.static_gesture.classifier import (
     StaticClassifier,
     default_model_path,
+    personal_model_path,
     shipped_model_path,
     user_model_path,
 )
@@ -197,6 +198,39 @@ def test_without_a_model_setting_the_users_model_wins_over_the_shipped_one(tmp_p
     bus.tick(1.0)  # the poll re-resolves the default path and finds the user's model
     assert bus.feed(keys.HANDS_FRAME, frame([gesture_hand("two")]))[0][1]["model"] == user_id
     assert user_id != shipped_id
+
+
+def test_the_person_cbgo_user_names_is_served_their_own_model_and_the_others_the_common_one(
+        tmp_path, monkeypatch, make_model):
+    monkeypatch.setenv("CBGO_DATA_DIR", str(tmp_path))
+    _, _, common = make_model(user_model_path(), seed=1)
+    _, _, alices = make_model(personal_model_path("alice"), seed=2)
+    bus = service(watch_s=0.0)
+
+    def served():
+        return bus.feed(keys.HANDS_FRAME, frame([gesture_hand("two")]))[0][1]["model"]
+
+    assert served() == common
+    bus.feed(keys.USER, {"v": 1, "ts": 1.0, "user": "alice"})
+    assert served() == alices
+    bus.feed(keys.USER, {"v": 1, "ts": 2.0, "user": "bob"})  # no model of his own
+    assert served() == common
+    loaded = bus.service._loaded
+    bus.feed(keys.USER, {"v": 1, "ts": 3.0, "user": "alice"})  # back: no reload
+    assert served() == alices and bus.service._loaded is loaded and len(loaded) == 2
+    bus.feed(keys.USER, {"v": 1, "ts": 4.0, "user": "../alice"})  # a name no file may carry
+    assert personal_model_path("../alice") is None and served() == common
+
+
+def test_a_broken_personal_model_is_counted_and_the_model_in_service_stays(
+        tmp_path, monkeypatch, make_model):
+    monkeypatch.setenv("CBGO_DATA_DIR", str(tmp_path))
+    pt, _, _ = make_model(personal_model_path("alice"), seed=2)
+    pt.write_bytes(b"garbage")
+    bus = service(watch_s=0.0)
+    before = bus.service.classifier.model_id
+    bus.feed(keys.USER, {"v": 1, "ts": 1.0, "user": "alice"})
+    assert bus.service.classifier.model_id == before and bus.counters.errors == 1
 
 
 # --------------------------------------------------------------------------- reload

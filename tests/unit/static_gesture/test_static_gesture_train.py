@@ -232,3 +232,19 @@ def test_joint_angles_the_caller_computed_already_give_the_same_answer():
                           clf.predict_features(x))
     other = invariant.bends(x[::-1])  # another hand's angles: the model reads what it is given
     assert not np.allclose(clf.predict_features(x, bent=other), clf.predict_features(x))
+
+
+def test_a_personal_model_reads_only_its_persons_takes_and_the_common_one_none_of_them(tmp_path):
+    rows = np.zeros((10, 57))
+    rows[6:, 0] = 1.0  # bob's rows
+    train.store_gesture("thumbsup", rows[:4], {"user": "alice", "count": 4}, tmp_path)
+    train.store_gesture("thumbsup", rows[4:6], {"user": "alice", "count": 2, "personal": True},
+                        tmp_path)
+    train.store_gesture("thumbsup", rows[6:], {"user": "bob", "count": 4}, tmp_path)
+    (alice,) = train.load_user_gestures(tmp_path, user="alice")
+    assert len(alice.x) == 6 and not alice.x[:, 0].any()
+    (bob,) = train.load_user_gestures(tmp_path, user="bob")
+    assert len(bob.x) == 4 and bob.x[:, 0].all()
+    (common,) = train.load_user_gestures(tmp_path)  # alice's personal take left out
+    assert len(common.x) == 8 and [t["user"] for t in common.takes] == ["alice", "bob"]
+    assert train.load_user_gestures(tmp_path, user="carol") == []
