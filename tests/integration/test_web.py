@@ -442,6 +442,22 @@ def refitted(stack, user: str, timeout: float) -> dict:
     return reply
 
 
+def test_a_new_page_shows_the_current_users_mapping_without_asking(system, browser):
+    stack, url, _, _ = system
+    page = browser.new_page()
+    try:
+        page.goto(url)
+        panel = page.locator("[data-testid=mapping]")
+        # leap-bridge names the current user every 2 s; nothing is clicked
+        expect(panel.locator("[data-testid=mapping-user]")).not_to_have_value("", timeout=20000)
+        user = panel.locator("[data-testid=mapping-user]").input_value()
+        expect(panel.locator("[data-testid=mapping-table]")).to_be_visible(timeout=20000)
+        expect(panel.locator("[data-testid=mapping-result]")).to_contain_text(
+            f"intent/{user}/mapping.yaml")
+    finally:
+        page.close()
+
+
 def test_the_mapping_table_shows_sets_and_unsets_a_users_rules(page, system):
     stack, _, _, work = system
     panel = page.locator("[data-testid=mapping]")

@@ -400,8 +400,15 @@ function askMapping(extra) {
   });
 }
 
+// The current user's mapping, asked when they first show up (the panel follows the current
+// user until a name is typed); no note when it cannot be asked: "show" still can.
+function followMapping() {
+  if (info.mode !== "live" || mappingUser !== null || !store.user) return;
+  request({ type: "mapping", user: store.user, op: "show" }, () => {});
+}
+
 function mappingAnswered(msg) {
-  if (msg.user !== mappingUser) return;
+  if (msg.user !== (mappingUser ?? store.user)) return;
   if (msg.ok) store.mapping = msg;  // a refused edit keeps the table as it was
   mappingNote = !msg.ok ? { ok: false, text: msg.error }
     : { ok: true, text: msg.op === "show" ? `from ${msg.path}` : `${msg.op}: written to ${msg.path}` };
@@ -627,7 +634,9 @@ function draw(now) {
   if (any("intent", "episode/summary")) drawFeedback();  // not on scenes: keep the user's choice
   if (any("intent/clarify")) drawClarify();
   // cbgo/user repeats: redraw (and lose what is typed) only when the user shown changes
-  if (any("@mapping") || (any("user") && mappingUser === null && store.user !== mappingDrawnFor)) drawMapping();
+  const newUser = any("user") && mappingUser === null && store.user !== mappingDrawnFor;
+  if (any("@mapping") || newUser) drawMapping();
+  if (newUser) followMapping();
   if (any("plan/status", "robot/state", "scene/state", "robot/stop", "@services")) drawPlan();
   if (any("@services")) drawServices();
   if (now - lastCharts > 100) {  // the charts move with time: 10 redraws a second are plenty
