@@ -114,6 +114,7 @@ class StaticGesture(Service):
         self.motion = motion.FingerMotion()
         self.moving = 0  # hands whose gestures faded for their fingers' motion
         self._loaded: dict[tuple, StaticClassifier] = {}
+        self.user: str | None = None  # the person cbgo/user names
 
     def setup(self, ctx) -> None:
         """Called once before the service is announced alive: loads the model, declares I/O.
@@ -208,7 +209,8 @@ class StaticGesture(Service):
 
     def on_user(self, msg: dict) -> None:
         """Called for each ``cbgo/user``: serves that person's own model if they have one."""
-        personal = personal_model_path(msg["user"])
+        self.user = msg["user"]
+        personal = personal_model_path(self.user)
         if personal == self.store.personal:
             return
         self.store.personal = personal
@@ -259,10 +261,12 @@ class StaticGesture(Service):
         """Adds the model, the hands classified and faded for moving, the ignored gestures.
 
         Also the data directory, where `cbgo gestures record` must write for the service to
-        load what it teaches.
+        load what it teaches, the person `cbgo/user` names and whether their own model serves.
         """
         return {"model": self.classifier.describe() if self.classifier else None,
-                "data_dir": str(data_dir()),
+                "data_dir": str(data_dir()), "user": self.user,
+                "personal": self.store is not None and self.store.personal is not None
+                and self.store.served_path() == self.store.personal,
                 "hands_classified": self.hands, "hands_moving": self.moving,
                 "ignored": list(self.settings.ignore)}
 

@@ -117,6 +117,10 @@ class ModelStore:
         """Records what was loaded (or tried: a broken file is reported once, not each poll)."""
         self._watched = (path, stamps)
 
+    def served_path(self) -> Path | None:
+        """Returns the base path of the model last served (or tried), None before any."""
+        return self._watched[0]
+
     def changed(self) -> bool:
         """Returns whether the model to serve moved or its files changed since `served`."""
         return self.snapshot() != self._watched

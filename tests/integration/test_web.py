@@ -15,31 +15,21 @@ Without chromium the module is skipped, except in CI (``CI=true``), where that f
 """
 
 import io
-import os
 import re
-import shutil
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import chromium
 import pytest
+from chromium import shot
 
 from cbgo import registry
 from cbgo.examples import example
 
-REPO = Path(__file__).resolve().parents[2]
-CHROMIUM = "/usr/bin/chromium"
 CLI = [sys.executable, "-m", "cbgo.cli.main"]
-ARTIFACTS = Path(os.environ.get("CBGO_TEST_ARTIFACTS", REPO / "out" / "test-artifacts")) / "web"
-
-if not Path(CHROMIUM).exists() or shutil.which("chromium") is None:
-    if os.environ.get("CI", "").lower() == "true":
-        pytest.fail(f"CI must run the browser tests: {CHROMIUM} is missing "
-                    "(apt-get install -y chromium; .ci/run does)", pytrace=False)
-    pytest.skip(f"{CHROMIUM} is missing (apt-get install -y chromium)", allow_module_level=True)
-
-playwright_api = pytest.importorskip("playwright.sync_api")
+playwright_api = chromium.require()
 expect = playwright_api.expect
 
 pytestmark = pytest.mark.timeout(300)
@@ -68,30 +58,17 @@ def system(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def browser():
-    with playwright_api.sync_playwright() as p:
-        chromium = p.chromium.launch(executable_path=CHROMIUM, headless=True)
-        yield chromium
-        chromium.close()
+    with chromium.launched() as browser:
+        yield browser
 
 
 @pytest.fixture(scope="module")
 def page(system, browser):
     """The live page, with every console error and page error it logs collected."""
     _, url, _, _ = system
-    page = browser.new_page(viewport={"width": 1500, "height": 1300})
-    page.errors = []
-    page.on("pageerror", lambda e: page.errors.append(f"page error: {e}"))
-    page.on("console", lambda m: m.type == "error" and page.errors.append(f"console: {m.text}"))
-    page.goto(url)
+    page = chromium.open_page(browser, url, 1500, 1300)
     yield page
     page.close()
-
-
-def shot(page, name: str) -> Path:
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
-    path = ARTIFACTS / f"{name}.png"
-    page.screenshot(path=str(path), full_page=True)
-    return path
 
 
 def shown(page, stack, locator, timeout: float = 30000) -> None:
@@ -352,11 +329,8 @@ def test_the_demo_recording_replays_in_the_same_panels(system, browser):
     server = stack.spawn("web-replay", [*CLI, "web", "--replay", str(recording),
                                         "--http-port", "0"])
     url = server.wait_for_line("serving ", timeout=60).rsplit(" at ", 1)[1].strip()
-    page = browser.new_page(viewport={"width": 1500, "height": 1300})
-    errors = []
-    page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
-    page.on("console", lambda m: m.type == "error" and errors.append(f"console: {m.text}"))
-    page.goto(url)
+    page = chromium.open_page(browser, url, 1500, 1300)
+    errors = page.errors
     expect(page.locator("[data-testid=replay]")).to_be_visible()
     expect(page.locator("[data-testid=intent]")).to_contain_text("pick_up(cup1)")
     page.locator("#scrub").fill("0")  # back to the start: no intent yet
@@ -371,11 +345,8 @@ def test_the_demo_recording_replays_in_the_same_panels(system, browser):
 
 def test_a_recording_opened_from_the_live_page_replays_in_it(system, browser):
     stack, url, _, work = system
-    page = browser.new_page(viewport={"width": 1500, "height": 1300})
-    errors = []
-    page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
-    page.on("console", lambda m: m.type == "error" and errors.append(f"console: {m.text}"))
-    page.goto(url)
+    page = chromium.open_page(browser, url, 1500, 1300)
+    errors = page.errors
     expect(page.locator("#link")).to_contain_text("live")
     page.locator("[data-testid=open-recording]").set_input_files(
         str(work / "demo" / "session.mcap"))
@@ -444,9 +415,8 @@ def refitted(stack, user: str, timeout: float) -> dict:
 
 def test_a_new_page_shows_the_current_users_mapping_without_asking(system, browser):
     stack, url, _, _ = system
-    page = browser.new_page()
+    page = chromium.open_page(browser, url, 1500, 1300)
     try:
-        page.goto(url)
         panel = page.locator("[data-testid=mapping]")
         # leap-bridge names the current user every 2 s; nothing is clicked
         expect(panel.locator("[data-testid=mapping-user]")).not_to_have_value("", timeout=20000)

@@ -10,37 +10,24 @@ Without chromium the module is skipped, except in CI (``CI=true``), where that f
 """
 
 import json
-import os
-import shutil
-from pathlib import Path
 
+import chromium
 import pytest
+from chromium import shot
 
 from cbgo import keys, registry
 from cbgo.foxglove.arm import link_points
 from cbgo.testing import Stack
 
-REPO = Path(__file__).resolve().parents[2]
-CHROMIUM = "/usr/bin/chromium"
-ARTIFACTS = Path(os.environ.get("CBGO_TEST_ARTIFACTS", REPO / "out" / "test-artifacts")) / "web"
-
-if not Path(CHROMIUM).exists() or shutil.which("chromium") is None:
-    if os.environ.get("CI", "").lower() == "true":
-        pytest.fail(f"CI must run the browser tests: {CHROMIUM} is missing "
-                    "(apt-get install -y chromium; .ci/run does)", pytrace=False)
-    pytest.skip(f"{CHROMIUM} is missing (apt-get install -y chromium)", allow_module_level=True)
-
-playwright_api = pytest.importorskip("playwright.sync_api")
+playwright_api = chromium.require()
 
 pytestmark = pytest.mark.timeout(300)
 
 
 @pytest.fixture(scope="module")
 def browser():
-    with playwright_api.sync_playwright() as p:
-        chromium = p.chromium.launch(executable_path=CHROMIUM, headless=True)
-        yield chromium
-        chromium.close()
+    with chromium.launched() as browser:
+        yield browser
 
 
 def open_page(browser, stack: Stack, robot: str):
@@ -49,12 +36,7 @@ def open_page(browser, stack: Stack, robot: str):
     stack.start_service(robot)
     stack.start_service("web")
     stack.wait_alive(["router", robot, "web"], timeout=120)
-    page = browser.new_page(viewport={"width": 1400, "height": 1100})
-    page.errors = []
-    page.on("pageerror", lambda e: page.errors.append(f"page error: {e}"))
-    page.on("console", lambda m: m.type == "error" and page.errors.append(f"console: {m.text}"))
-    page.goto(stack.status("web")["url"])
-    return page
+    return chromium.open_page(browser, stack.status("web")["url"], 1400, 1100)
 
 
 def drawn_arm(page, after: dict | None = None) -> dict:
@@ -65,11 +47,6 @@ def drawn_arm(page, after: dict | None = None) -> dict:
         " return a && (!old || JSON.stringify(JSON.parse(a)) !== old); }", arg=old,
         timeout=30000)
     return json.loads(page.locator("[data-testid=scene-3d]").get_attribute("data-arm"))
-
-
-def shot(page, name: str) -> None:
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
-    page.screenshot(path=str(ARTIFACTS / f"{name}.png"), full_page=True)
 
 
 @pytest.mark.skipif(not registry.by_name("mujoco-sim").exists(),

@@ -213,8 +213,9 @@ def test_the_person_cbgo_user_names_is_served_their_own_model_and_the_others_the
     assert served() == common
     bus.feed(keys.USER, {"v": 1, "ts": 1.0, "user": "alice"})
     assert served() == alices
+    assert bus.service.status_extra()["user"] == "alice" and bus.service.status_extra()["personal"]
     bus.feed(keys.USER, {"v": 1, "ts": 2.0, "user": "bob"})  # no model of his own
-    assert served() == common
+    assert served() == common and not bus.service.status_extra()["personal"]
     loaded = bus.service._loaded
     bus.feed(keys.USER, {"v": 1, "ts": 3.0, "user": "alice"})  # back: no reload
     assert served() == alices and bus.service._loaded is loaded and len(loaded) == 2
