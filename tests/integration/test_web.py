@@ -239,6 +239,7 @@ def test_the_camera_preview_is_drawn_with_its_landmarks_beside_the_3d_hand(page,
     pink = [c for _, c in drawn.convert("RGB").getcolors(maxcolors=1 << 20)
             if abs(c[0] - 0xf7) < 12 and abs(c[1] - 0x78) < 12 and abs(c[2] - 0xba) < 12]
     assert pink, "no landmark drawn in the right hand's colour"
+    shot(page, "live-camera-preview")
     assert not page.errors, page.errors
 
 
