@@ -433,8 +433,9 @@ def test_a_lost_connection_is_reported_and_a_reset_reconnects(cell):
 @pytest.mark.timeout(900)
 @pytest.mark.xfail(strict=False, reason="franky-sim's arm sometimes does not finish a motion of "
                    "the pour (step 2): 'the motion did not end within 60 s', the held cup found "
-                   "back on the table; 2 of 7 clean-clone runs (the service answers it safely: "
-                   "the pour fails, the cups become unknown, later steps are refused)")
+                   "back on the table; 2 of 15 runs, both whole-suite runs of a clean clone "
+                   "(the service answers it safely: the pour fails, the cups become unknown, "
+                   "later steps are refused)")
 def test_cbgo_demo_plays_the_papers_story_on_franky_sim(stack, tmp_path):
     from cbgo.demo.session import load_session
     from cbgo.testing import free_port
