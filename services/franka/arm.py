@@ -48,6 +48,9 @@ GRASP_TOLERANCE = 0.006
 GRASP_SQUEEZE = 0.012
 GRIPPER_TIMEOUT_S = 10.0  # s a gripper command may take before it counts as failed
 MOTION_TIMEOUT_S = 60.0  # s one Cartesian motion may take at the slowest speed
+# Both are counted on the robot's own clock (`RobotClock`): a simulator runs slower than the wall
+# clock on a busy machine (franky-sim's 90 s pour), and its motions last as long in its time.
+CLOCK_STALL_S = 10.0  # s of wall time the robot's clock may stand still before it counts as lost
 CONNECT_TIMEOUT_S = 10.0  # s to open the connection (franky-sim blocks a second client forever)
 READY_JOINTS = (0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785)  # rad, the Franka's ready posture
 
@@ -98,6 +101,36 @@ def _run_with_timeout(fn: Callable[[], object], timeout_s: float, what: str):
         e = box["error"]
         raise ArmFault("connection", f"{what} failed: {type(e).__name__}: {e}")
     return box.get("value")
+
+
+class RobotClock:
+    """How long a command has run by the robot's own clock, and whether that clock still runs.
+
+    The robot stamps every state with its time (`RobotState.time`): a real arm's runs with the
+    wall clock, a simulator's as fast as it steps. A command is overdue after ``limit_s`` of
+    robot time; a clock that stands still for `CLOCK_STALL_S` of wall time is a lost robot.
+
+    Args:
+        now: reads the robot's time (s).
+        limit_s: the command's time limit in robot time.
+    """
+
+    def __init__(self, now: Callable[[], float], limit_s: float):
+        self.now, self.limit_s = now, limit_s
+        self.start = self.last = now()
+        self.last_change = time.monotonic()
+
+    def check(self, what: str) -> None:
+        """Raises ArmFault when the command is overdue (``planner``) or the clock stopped."""
+        t = self.now()
+        if t != self.last:
+            self.last, self.last_change = t, time.monotonic()
+        elif time.monotonic() - self.last_change > CLOCK_STALL_S:
+            raise ArmFault("connection", f"the robot's clock has not moved for "
+                                         f"{CLOCK_STALL_S:g} s during {what}")
+        if t - self.start > self.limit_s:
+            raise ArmFault("planner", f"{what} did not end within {self.limit_s:g} s of the "
+                                      "robot's time")
 
 
 class FrankyArm:
@@ -178,8 +211,8 @@ class FrankyArm:
         target = franky.Affine(np.asarray(position, float), np.asarray(quaternion, float))
         factor = franky.RelativeDynamicsFactor(SLOW_FACTOR if slow else 1.0)
         motion = franky.CartesianMotion(target, franky.ReferenceType.Absolute, factor)
+        clock = RobotClock(self._robot_time, MOTION_TIMEOUT_S)
         self._send(lambda: self.robot.move(motion, asynchronous=True))
-        deadline = time.monotonic() + MOTION_TIMEOUT_S
         while True:
             if stop.is_set():
                 self._halt()
@@ -187,9 +220,24 @@ class FrankyArm:
             if self._joined():
                 return
             tick()
-            if time.monotonic() > deadline:
+            try:
+                clock.check("the motion")
+            except ArmFault:
                 self._halt()
-                raise ArmFault("planner", f"the motion did not end within {MOTION_TIMEOUT_S:g} s")
+                raise
+
+    def _robot_time(self) -> float:
+        """Returns the robot's clock (s), from its latest state.
+
+        Raises:
+            ArmFault: (``connection``) the state cannot be read.
+        """
+        try:
+            return float(self.robot.state.time.to_sec())
+        except Exception as e:  # noqa: BLE001 - franky raises RuntimeError("Net Exception")
+            self.mark_lost(f"{type(e).__name__}: {e}")
+            raise ArmFault("connection", f"the connection to the robot at {self.ip} is lost: "
+                                         f"{type(e).__name__}: {e}") from None
 
     def _send(self, fn: Callable[[], object]) -> None:
         import franky
@@ -275,16 +323,17 @@ class FrankyArm:
         import franky
 
         try:
+            clock = RobotClock(self._robot_time, GRIPPER_TIMEOUT_S)
             future = start()
-            deadline = time.monotonic() + GRIPPER_TIMEOUT_S
             while not future.wait(WAIT_SLICE_S):
                 if stop.is_set():
                     self.gripper.stop()
                     raise Stopped()
                 tick()
-                if time.monotonic() > deadline:
-                    raise ArmFault("gripper", f"{what} did not end within "
-                                              f"{GRIPPER_TIMEOUT_S:g} s")
+                try:
+                    clock.check(what)
+                except ArmFault as e:
+                    raise ArmFault("gripper" if e.kind == "planner" else e.kind, str(e)) from None
             return bool(future.get())
         except franky.NetworkException as e:
             self.mark_lost(str(e))
