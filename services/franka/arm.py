@@ -113,15 +113,16 @@ class RobotClock:
     Args:
         now: reads the robot's time (s).
         limit_s: the command's time limit in robot time.
+        overdue: the `ArmFault.kind` of an overdue command.
     """
 
-    def __init__(self, now: Callable[[], float], limit_s: float):
-        self.now, self.limit_s = now, limit_s
+    def __init__(self, now: Callable[[], float], limit_s: float, overdue: str = "planner"):
+        self.now, self.limit_s, self.overdue = now, limit_s, overdue
         self.start = self.last = now()
         self.last_change = time.monotonic()
 
     def check(self, what: str) -> None:
-        """Raises ArmFault when the command is overdue (``planner``) or the clock stopped."""
+        """Raises ArmFault when the command is overdue (`overdue`) or the clock stopped."""
         t = self.now()
         if t != self.last:
             self.last, self.last_change = t, time.monotonic()
@@ -129,8 +130,8 @@ class RobotClock:
             raise ArmFault("connection", f"the robot's clock has not moved for "
                                          f"{CLOCK_STALL_S:g} s during {what}")
         if t - self.start > self.limit_s:
-            raise ArmFault("planner", f"{what} did not end within {self.limit_s:g} s of the "
-                                      "robot's time")
+            raise ArmFault(self.overdue, f"{what} did not end within {self.limit_s:g} s of the "
+                                         "robot's time")
 
 
 class FrankyArm:
@@ -323,17 +324,14 @@ class FrankyArm:
         import franky
 
         try:
-            clock = RobotClock(self._robot_time, GRIPPER_TIMEOUT_S)
+            clock = RobotClock(self._robot_time, GRIPPER_TIMEOUT_S, overdue="gripper")
             future = start()
             while not future.wait(WAIT_SLICE_S):
                 if stop.is_set():
                     self.gripper.stop()
                     raise Stopped()
                 tick()
-                try:
-                    clock.check(what)
-                except ArmFault as e:
-                    raise ArmFault("gripper" if e.kind == "planner" else e.kind, str(e)) from None
+                clock.check(what)
             return bool(future.get())
         except franky.NetworkException as e:
             self.mark_lost(str(e))

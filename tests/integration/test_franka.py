@@ -53,14 +53,8 @@ LOCKED_TRAVEL = 0.0005  # m a drawer the simulator's scene marks "locked" can mo
 # fingers; 4000 N/m reaches 20 N.
 HAND_STIFFNESS = 4000.0
 
-SCENE = {
-    "objects": [
-        {"name": "box1", "type": "box", "position": [0.56, -0.06, 0.025], "size": 0.05},
-        {"name": "cup1", "type": "cup", "position": [0.44, 0.18, 0.03], "size": 0.06},
-        {"name": "drawer1", "type": "drawer", "position": [0.68, -0.18, 0.055], "size": 0.11},
-    ],
-    "robot": {"tcp": [0.56, 0.06, 0.36], "gripper_open": True, "holding": None},
-}
+# the declared scene of every test here and of the bad-input battery
+SCENE = json.loads((Path(__file__).parents[1] / "fixtures" / "franka" / "scene.json").read_text())
 
 
 # ============================================================================ the simulator

@@ -11,6 +11,7 @@ tests/integration/test_franka.py.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import msgpack
 import pytest
@@ -19,14 +20,8 @@ from cbgo import keys, wire
 from cbgo.services.franka.main import Franka, FrankaSettings
 from cbgo.testing import FakeBus, _FakeQuery
 
-SCENE = {
-    "objects": [
-        {"name": "box1", "type": "box", "position": [0.56, -0.06, 0.025], "size": 0.05},
-        {"name": "cup1", "type": "cup", "position": [0.44, 0.18, 0.03], "size": 0.06},
-        {"name": "drawer1", "type": "drawer", "position": [0.68, -0.18, 0.055], "size": 0.11},
-    ],
-    "robot": {"tcp": [0.56, 0.06, 0.36], "gripper_open": True, "holding": None},
-}
+# the declared scene of every test here and of the bad-input battery
+SCENE = json.loads((Path(__file__).parents[2] / "fixtures" / "franka" / "scene.json").read_text())
 NAN = float("nan")
 
 

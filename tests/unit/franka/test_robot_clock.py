@@ -40,3 +40,11 @@ def test_a_clock_that_stands_still_is_a_lost_robot(clocks):
     with pytest.raises(ArmFault) as fault:
         clock.check("the motion")
     assert fault.value.kind == "connection" and "clock has not moved" in str(fault.value)
+
+
+def test_an_overdue_gripper_command_is_a_gripper_fault(clocks):
+    clock = RobotClock(lambda: clocks.robot, 10.0, overdue="gripper")
+    clocks.robot += 10.5
+    with pytest.raises(ArmFault) as fault:
+        clock.check("grasping 0.050 m")
+    assert fault.value.kind == "gripper" and "10 s of the robot's time" in str(fault.value)
